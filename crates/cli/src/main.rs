@@ -1,0 +1,2 @@
+//! The `slamkit` command-line tool.
+fn main() {}

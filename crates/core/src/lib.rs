@@ -1,0 +1,17 @@
+//! slamkit-core: the geometry every other slamkit crate speaks.
+//!
+//! * Poses are nalgebra isometries ([`Pose2`], [`Pose3`]) named `target_from_source`:
+//!   `world_from_camera * p_camera = p_world`.
+//! * Units are metres, radians and seconds; a unit suffix is used wherever a bare number could
+//!   be misread.
+//! * Camera frame: x right, y down, z forward (TUM, OpenCV, RealSense).
+//!
+//! Nothing in this crate prints, reads files or exits the process.
+
+pub mod pose;
+pub mod scan;
+pub mod trajectory;
+
+pub use pose::{Pose2, Pose3};
+pub use scan::LaserScan;
+pub use trajectory::{StampedPose, Trajectory};

@@ -1,0 +1,1 @@
+//! slamkit-eval: accuracy metrics against ground truth (ATE, RPE, the relations metric).

@@ -1,0 +1,1 @@
+//! slamkit-lidar: 2D scan matching, ICP-SLAM, particle-filter SLAM and localisation.

@@ -1,0 +1,1 @@
+//! slamkit-map: occupancy grids, octrees and point maps.
