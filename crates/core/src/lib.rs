@@ -10,8 +10,10 @@
 
 pub mod pose;
 pub mod scan;
+pub mod timing;
 pub mod trajectory;
 
 pub use pose::{Pose2, Pose3};
 pub use scan::LaserScan;
+pub use timing::StageTimings;
 pub use trajectory::{StampedPose, Trajectory};
