@@ -1,2 +1,58 @@
-//! The `slamkit` command-line tool.
-fn main() {}
+//! `slamkit`: localisation, mapping and navigation for small robots, from the command line.
+//!
+//! The command-line contract (subcommands, flags, output files) is in DESIGN.md; tests,
+//! benchmarks and users call it, so it changes only on purpose.
+
+mod commands;
+mod output;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+/// slamkit: localisation, mapping and navigation for small robots (drones, balancing and
+/// wheeled robots with a CPU and no GPU).
+#[derive(Debug, Parser)]
+#[command(name = "slamkit", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Simulate a robot in a built-in world, run SLAM on it and report the errors (no download).
+    Demo(commands::demo::DemoArgs),
+    /// Visual odometry on an RGB-D or stereo dataset folder.
+    Vo(commands::vo::VoArgs),
+    /// 2D lidar SLAM (ICP or particle filter) or localisation on a CARMEN log.
+    Lidar(commands::lidar::LidarArgs),
+    /// Accuracy of a trajectory against ground truth: ATE, RPE, relations metric.
+    Eval(commands::eval::EvalArgs),
+    /// Plan a path on an occupancy grid map.
+    Plan(commands::plan::PlanArgs),
+    /// Simulate sensors in a world and write real dataset formats with ground truth.
+    Sim(commands::sim::SimArgs),
+    /// Closed loop in the simulator: localise, map, plan and drive to a goal.
+    Nav(commands::nav::NavArgs),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match &cli.command {
+        Command::Demo(args) => commands::demo::run(args),
+        Command::Vo(args) => commands::vo::run(args),
+        Command::Lidar(args) => commands::lidar::run(args),
+        Command::Eval(args) => commands::eval::run(args),
+        Command::Plan(args) => commands::plan::run(args),
+        Command::Sim(args) => commands::sim::run(args),
+        Command::Nav(args) => commands::nav::run(args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(err) => {
+            // One line: the error and its causes, outermost first; never a backtrace.
+            eprintln!("error: {}", output::error_chain(&err));
+            ExitCode::FAILURE
+        }
+    }
+}

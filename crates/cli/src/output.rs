@@ -1,0 +1,77 @@
+//! What every command shares for its outputs: the output folder, progress bars, report.json,
+//! peak memory, and one-line error messages.
+
+use anyhow::Context;
+use indicatif::{ProgressBar, ProgressStyle};
+use std::path::{Path, PathBuf};
+
+/// Formats an error and its causes on one line: `outer: cause: root cause`.
+pub fn error_chain(err: &anyhow::Error) -> String {
+    err.chain()
+        .map(|e| e.to_string())
+        .collect::<Vec<_>>()
+        .join(": ")
+}
+
+/// Creates the output folder (and its parents) and returns its path.
+pub fn prepare_out_dir(dir: &Path) -> anyhow::Result<PathBuf> {
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("creating output folder {}", dir.display()))?;
+    Ok(dir.to_path_buf())
+}
+
+/// A progress bar over `len` items, drawn on stderr; hidden when stderr is not a terminal.
+pub fn progress_bar(len: u64, what: &str) -> ProgressBar {
+    let bar = ProgressBar::new(len);
+    let style = ProgressStyle::with_template(
+        "{msg:>10} [{elapsed_precise}] {wide_bar} {pos}/{len} ({per_sec}, eta {eta})",
+    )
+    .unwrap_or_else(|_| ProgressStyle::default_bar());
+    bar.set_style(style);
+    bar.set_message(what.to_owned());
+    bar
+}
+
+/// Peak resident memory of this process [bytes] (VmHWM from /proc), when the OS tells it.
+pub fn peak_rss_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
+/// Writes `report` as pretty JSON to `dir/report.json`.
+pub fn write_report(dir: &Path, report: &serde_json::Value) -> anyhow::Result<()> {
+    let path = dir.join("report.json");
+    let text = serde_json::to_string_pretty(report).context("serialising report")?;
+    std::fs::write(&path, text + "\n").with_context(|| format!("writing {}", path.display()))
+}
+
+/// The per-stage timing summary as JSON: `{stage: {median_ms, p95_ms, total_ms, count}}`.
+pub fn timings_json(timings: &slamkit_core::StageTimings) -> serde_json::Value {
+    serde_json::to_value(timings.summary()).unwrap_or(serde_json::Value::Null)
+}
+
+/// Answers for subcommands whose algorithms belong to an open issue: a clear error, non-zero
+/// exit, rather than a silent stub.
+pub fn not_yet(command: &str, issue: &str) -> anyhow::Result<()> {
+    anyhow::bail!("`slamkit {command}` is not implemented yet ({issue}); see README.md")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn chain_joins_causes() {
+        let err = anyhow::anyhow!("root cause").context("reading log.clf");
+        assert_eq!(error_chain(&err), "reading log.clf: root cause");
+    }
+
+    #[test]
+    fn peak_rss_is_reported_on_linux() {
+        if cfg!(target_os = "linux") {
+            assert!(peak_rss_bytes().is_some_and(|b| b > 0));
+        }
+    }
+}
