@@ -8,11 +8,18 @@
 //!
 //! Nothing in this crate prints, reads files or exits the process.
 
+pub mod absolute_orientation;
+pub mod error;
 pub mod pose;
 pub mod scan;
 pub mod timing;
 pub mod trajectory;
 
+#[cfg(test)]
+mod test_support;
+
+pub use absolute_orientation::{horn, umeyama, SimilarityFit};
+pub use error::GeometryError;
 pub use pose::{Pose2, Pose3};
 pub use scan::LaserScan;
 pub use timing::StageTimings;

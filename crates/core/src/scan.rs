@@ -10,15 +10,15 @@ use nalgebra::Point2;
 /// range. Such beams tell free space but are not obstacles; see [`LaserScan::is_hit`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct LaserScan {
-    /// Time of the scan [s].
+    /// Time of the scan \[s\].
     pub timestamp: f64,
-    /// Bearing of the first beam in the laser frame [rad].
+    /// Bearing of the first beam in the laser frame \[rad\].
     pub angle_min_rad: f64,
-    /// Angle between consecutive beams [rad].
+    /// Angle between consecutive beams \[rad\].
     pub angle_increment_rad: f64,
-    /// Measured ranges [m]; may hold NaN or negative values from broken sensors.
+    /// Measured ranges \[m\]; may hold NaN or negative values from broken sensors.
     pub ranges_m: Vec<f64>,
-    /// Readings at or beyond this are "no return" [m].
+    /// Readings at or beyond this are "no return" \[m\].
     pub max_range_m: f64,
     /// Wheel-odometry pose of the robot base at scan time, when the log has odometry.
     pub odometry: Option<Pose2>,
@@ -27,7 +27,7 @@ pub struct LaserScan {
 }
 
 impl LaserScan {
-    /// Bearing of beam `i` in the laser frame [rad].
+    /// Bearing of beam `i` in the laser frame \[rad\].
     pub fn beam_angle_rad(&self, i: usize) -> f64 {
         self.angle_min_rad + i as f64 * self.angle_increment_rad
     }

@@ -16,11 +16,11 @@ pub struct StageTimings {
 /// Summary of one stage's durations.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct TimingSummary {
-    /// Median duration [ms].
+    /// Median duration \[ms\].
     pub median_ms: f64,
-    /// 95th percentile duration [ms] (nearest rank).
+    /// 95th percentile duration \[ms\] (nearest rank).
     pub p95_ms: f64,
-    /// Total time spent in the stage [ms].
+    /// Total time spent in the stage \[ms\].
     pub total_ms: f64,
     /// Number of samples.
     pub count: usize,
@@ -29,7 +29,10 @@ pub struct TimingSummary {
 impl StageTimings {
     /// Records one duration for `stage`.
     pub fn record(&mut self, stage: &str, ms: f64) {
-        self.samples_ms.entry(stage.to_owned()).or_default().push(ms);
+        self.samples_ms
+            .entry(stage.to_owned())
+            .or_default()
+            .push(ms);
     }
 
     /// Runs `f`, records its duration under `stage` and returns its result.

@@ -5,7 +5,7 @@ use crate::Pose3;
 /// A pose with the time it holds at.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StampedPose {
-    /// Time [s].
+    /// Time \[s\].
     pub timestamp: f64,
     /// `world_from_body` at that time.
     pub pose: Pose3,
@@ -42,7 +42,7 @@ impl Trajectory {
         self.poses.is_empty()
     }
 
-    /// Length of the path through all positions [m].
+    /// Length of the path through all positions \[m\].
     pub fn path_length_m(&self) -> f64 {
         self.poses
             .windows(2)

@@ -1,0 +1,46 @@
+//! Errors of the geometry routines.
+//!
+//! Every routine here is fed sensor data, so bad input (NaN, too few or degenerate points) is an
+//! `Err` the caller can count and skip, never a panic.
+
+/// What went wrong in a geometric estimate.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum GeometryError {
+    /// Corresponding point sets must pair up one to one.
+    #[error("point sets differ in length: {src} source points, {dst} destination points")]
+    LengthMismatch {
+        /// Number of source points.
+        src: usize,
+        /// Number of destination points.
+        dst: usize,
+    },
+    /// The estimate needs more data than it was given.
+    #[error("need at least {min} points, got {got}")]
+    TooFewPoints {
+        /// Number of points given.
+        got: usize,
+        /// Number of points needed.
+        min: usize,
+    },
+    /// The points do not fix the transform: all coincident or all on one line.
+    #[error("{set} points are degenerate (coincident or collinear)")]
+    Degenerate {
+        /// Which point set: `"source"` or `"destination"`.
+        set: &'static str,
+    },
+    /// A coordinate is NaN or infinite.
+    #[error("{set} point {index} has a non-finite coordinate")]
+    NonFinite {
+        /// Which point set: `"source"` or `"destination"`.
+        set: &'static str,
+        /// Index of the offending point.
+        index: usize,
+    },
+    /// A linear-algebra routine failed to produce its result.
+    #[error("numerical failure in {what}")]
+    NumericalFailure {
+        /// The routine that failed.
+        what: &'static str,
+    },
+}
