@@ -346,6 +346,64 @@ mod tests {
         }
     }
 
+    /// Reference values from evo 1.38.1 `evo.core.geometry.umeyama_alignment` (numpy 2.4.6)
+    /// on the points below, with and without scale.
+    #[test]
+    fn umeyama_matches_evo() {
+        let pts = |v: &[[f64; 3]]| v.iter().map(|p| Point3::from(*p)).collect::<Vec<_>>();
+        let src = pts(&[
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 2.0, 0.0],
+            [0.0, 0.0, 3.0],
+            [1.5, -0.5, 2.0],
+            [-1.0, 1.0, 0.5],
+            [2.0, 2.0, -1.0],
+        ]);
+        let dst = pts(&[
+            [1.0, 2.0, 3.0],
+            [1.3, 3.9, 2.8],
+            [-2.9, 2.4, 3.1],
+            [1.2, 1.7, 8.9],
+            [0.4, 4.1, 6.7],
+            [1.8, 0.2, 4.0],
+            [-1.5, 6.1, 0.9],
+        ]);
+        let r = Matrix3::new(
+            -0.1653740625012108,
+            -0.9724966718479533,
+            -0.16401720244077853,
+            0.9823425576011384,
+            -0.14767476693207887,
+            -0.11487063479066426,
+            0.08749010788368947,
+            -0.18011770167368307,
+            0.979746444018191,
+        );
+        let cases = [
+            (
+                false,
+                Vector3::new(0.9990173790076473, 2.5918936223069085, 3.6422078974081145),
+                1.0,
+            ),
+            (
+                true,
+                Vector3::new(1.6223216900324964, 2.344816754620354, 3.2147236973993856),
+                1.7663862539866435,
+            ),
+        ];
+        for (with_scale, t, scale) in cases {
+            let fit = umeyama(&src, &dst, with_scale).unwrap();
+            let r_fit = fit.dst_from_src.rotation.to_rotation_matrix();
+            assert!((r_fit.matrix() - r).abs().max() < 1e-12, "{with_scale}");
+            assert!(
+                (fit.dst_from_src.translation.vector - t).abs().max() < 1e-12,
+                "{with_scale}"
+            );
+            assert!((fit.scale - scale).abs() < 1e-12, "{with_scale}");
+        }
+    }
+
     #[test]
     fn reflected_data_still_gives_a_rotation() {
         // dst is a mirror image of src: the best proper rotation needs Umeyama's S fix.
