@@ -10,6 +10,7 @@
 
 pub mod absolute_orientation;
 pub mod error;
+pub mod image;
 pub mod pose;
 pub mod scan;
 pub mod timing;
