@@ -4,6 +4,7 @@
 //! panics.
 
 pub mod error;
+pub mod image_io;
 pub mod trajectory_file;
 
 pub use error::IoError;
