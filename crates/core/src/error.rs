@@ -43,4 +43,20 @@ pub enum GeometryError {
         /// The routine that failed.
         what: &'static str,
     },
+    /// RANSAC found no model that enough data agree with.
+    #[error("no consensus: best model has {inliers} inliers, need {needed}")]
+    NoConsensus {
+        /// Inliers of the best model found.
+        inliers: usize,
+        /// Inliers required.
+        needed: usize,
+    },
+    /// A configuration value is out of its valid range.
+    #[error("invalid configuration: {field} {reason}")]
+    InvalidConfig {
+        /// Name of the offending field.
+        field: &'static str,
+        /// What is wrong with it.
+        reason: &'static str,
+    },
 }

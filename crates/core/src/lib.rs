@@ -12,6 +12,7 @@ pub mod absolute_orientation;
 pub mod error;
 pub mod image;
 pub mod pose;
+pub mod ransac;
 pub mod scan;
 pub mod timing;
 pub mod trajectory;
@@ -22,6 +23,9 @@ mod test_support;
 pub use absolute_orientation::{horn, umeyama, SimilarityFit};
 pub use error::GeometryError;
 pub use pose::{Pose2, Pose3};
+pub use ransac::{
+    ransac, Estimator, PointMatch, RansacConfig, RansacResult, RigidTransformEstimator,
+};
 pub use scan::LaserScan;
 pub use timing::StageTimings;
 pub use trajectory::{StampedPose, Trajectory};
