@@ -9,6 +9,7 @@
 //! Nothing in this crate prints, reads files or exits the process.
 
 pub mod absolute_orientation;
+pub mod camera;
 pub mod error;
 pub mod image;
 pub mod pose;
@@ -21,6 +22,7 @@ pub mod trajectory;
 mod test_support;
 
 pub use absolute_orientation::{horn, umeyama, SimilarityFit};
+pub use camera::{Distortion, Intrinsics, PinholeCamera};
 pub use error::GeometryError;
 pub use pose::{Pose2, Pose3};
 pub use ransac::{
