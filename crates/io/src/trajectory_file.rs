@@ -122,6 +122,42 @@ pub(crate) fn pose_from_matrix(m: &Matrix3x4<f64>) -> Result<Pose3, String> {
     ))
 }
 
+/// Parses a 4×4 homogeneous `[R t; 0 0 0 1]` written as four lines of four numbers
+/// (7-Scenes `.pose.txt`, Redwood `.log` blocks) into a re-orthonormalised pose.
+///
+/// `rows` are (1-based line number, text); errors name the line at fault.
+pub(crate) fn pose_from_rows(rows: &[(usize, &str)], file: &str) -> Result<Pose3, IoError> {
+    let mut values = Vec::with_capacity(16);
+    for &(no, line) in rows {
+        let v = parse_numbers(line, file, no)?;
+        if v.len() != 4 {
+            return Err(IoError::parse(
+                file,
+                no,
+                format!("{} numbers, a matrix row needs 4", v.len()),
+            ));
+        }
+        values.extend(v);
+    }
+    let last_no = rows.last().map_or(0, |r| r.0);
+    if values.len() != 16 {
+        return Err(IoError::parse(file, last_no, "a 4x4 matrix needs 4 rows"));
+    }
+    if values[12..]
+        .iter()
+        .zip([0.0, 0.0, 0.0, 1.0])
+        .any(|(v, w)| (v - w).abs() > 1e-6)
+    {
+        return Err(IoError::parse(
+            file,
+            last_no,
+            "last matrix row must be 0 0 0 1",
+        ));
+    }
+    let m = Matrix3x4::from_row_slice(&values[..12]);
+    pose_from_matrix(&m).map_err(|msg| IoError::parse(file, rows.first().map_or(0, |r| r.0), msg))
+}
+
 /// Builds a unit quaternion from (w, x, y, z), normalising it. Fails on a zero-length or
 /// non-finite quaternion.
 pub(crate) fn unit_quaternion(
@@ -163,8 +199,12 @@ pub(crate) fn parse_numbers(line: &str, file: &str, line_no: usize) -> Result<Ve
 /// Converts an integer nanosecond timestamp (EuRoC) to seconds without losing the
 /// sub-second digits to f64 rounding of the large integer.
 pub(crate) fn parse_ns_as_s(tok: &str) -> Option<f64> {
-    let ns: u64 = tok.trim().parse().ok()?;
-    Some((ns / 1_000_000_000) as f64 + (ns % 1_000_000_000) as f64 * 1e-9)
+    tok.trim().parse().ok().map(ns_to_s)
+}
+
+/// Nanoseconds to seconds, splitting off whole seconds first to keep the fraction exact.
+pub(crate) fn ns_to_s(ns: u64) -> f64 {
+    (ns / 1_000_000_000) as f64 + (ns % 1_000_000_000) as f64 * 1e-9
 }
 
 /// The lines holding data: not blank, not `#` comments; with 1-based line numbers.
