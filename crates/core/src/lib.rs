@@ -12,6 +12,7 @@ pub mod absolute_orientation;
 pub mod camera;
 pub mod error;
 pub mod image;
+pub mod point_cloud;
 pub mod pose;
 pub mod ransac;
 pub mod scan;
@@ -24,6 +25,7 @@ mod test_support;
 pub use absolute_orientation::{horn, umeyama, SimilarityFit};
 pub use camera::{Distortion, Intrinsics, PinholeCamera};
 pub use error::GeometryError;
+pub use point_cloud::{BoundingBox, PointCloud};
 pub use pose::{Pose2, Pose3};
 pub use ransac::{
     ransac, Estimator, PointMatch, RansacConfig, RansacResult, RigidTransformEstimator,
