@@ -214,3 +214,289 @@ fn timestamp_only_file_is_rejected_naming_line_1() {
         other => panic!("expected a parse error, got {other:?}"),
     }
 }
+
+// ---------------------------------------------------------------------------------------------
+// Dataset folders.
+
+use nalgebra::{Quaternion, Translation3, UnitQuaternion, Vector3};
+use slamkit_core::Pose3;
+use slamkit_io::tum_rgbd::{TumCamera, TumRgbdConfig};
+use slamkit_io::{kitti, seven_scenes, tum_rgbd, Dataset, DatasetFormat};
+use std::path::Path;
+
+fn assert_close(got: f64, want: f64, tol: f64, what: &str) {
+    assert!((got - want).abs() <= tol, "{what}: {got} vs {want}");
+}
+
+#[test]
+fn kitti_06_clip_frames_calibration_and_ground_truth() {
+    // KITTI odometry 06 frames 0–50 (niconielsen32/VisualSLAM, CAMERA_SOURCES.md section 1).
+    let Some(dir) = data("kitti_06_clip", "stereo/kitti_odometry_06_0000-0050") else {
+        return;
+    };
+    let Dataset::Stereo(seq) = Dataset::open(&dir, DatasetFormat::Kitti).unwrap() else {
+        panic!("KITTI is stereo");
+    };
+    assert_eq!(seq.frames.len(), 51);
+    assert_eq!(seq.frames[0].timestamp, 0.0);
+    assert_close(
+        seq.frames[50].timestamp,
+        5.0,
+        1e-12,
+        "last stamp (10 Hz, no times.txt)",
+    );
+    let k = seq.left_camera.intrinsics;
+    assert_eq!(
+        (k.fx, k.fy, k.cx, k.cy),
+        (707.0912, 707.0912, 601.8873, 183.1104)
+    );
+    assert_eq!((k.width, k.height), (1226, 370));
+    assert_close(seq.baseline_m(), 0.5372, 1e-4, "baseline");
+    assert!(seq.rectified);
+    // poses.txt last line: t = (-9.814360e-01, -1.190278e+00, 5.983857e+01).
+    let gt = seq.ground_truth.as_ref().unwrap();
+    assert_eq!(gt.len(), 51);
+    assert_close(gt.poses[50].timestamp, 5.0, 1e-12, "GT stamp");
+    let t = gt.poses[50].pose.translation.vector;
+    assert!((t - Vector3::new(-9.814360e-01, -1.190278e+00, 5.983857e+01)).norm() < 1e-9);
+    let images = seq.load(&seq.frames[50]).unwrap();
+    assert_eq!((images.left.width(), images.right.height()), (1226, 370));
+    // The label-less upstream calibration gives the same numbers.
+    let raw = std::fs::read_to_string(dir.join("calib_as_committed.txt")).unwrap();
+    let labelled = std::fs::read_to_string(dir.join("calib.txt")).unwrap();
+    assert_eq!(
+        kitti::parse_calib(&raw).unwrap(),
+        kitti::parse_calib(&labelled).unwrap()
+    );
+}
+
+#[test]
+fn seven_scenes_redkitchen_frames_intrinsics_and_poses() {
+    // 7-Scenes RedKitchen frames 0–599 (andyzeng/tsdf-fusion-python, section 7).
+    let Some(dir) = data(
+        "seven_scenes_redkitchen",
+        "rgbd/7scenes_redkitchen_frames_0000-0599",
+    ) else {
+        return;
+    };
+    let seq = seven_scenes::open(&dir).unwrap();
+    assert_eq!(seq.frames.len(), 600);
+    assert_eq!(seq.frames[0].timestamp, 0.0);
+    assert_close(seq.frames[599].timestamp, 599.0 / 30.0, 1e-12, "last stamp");
+    let k = seq.depth_camera.intrinsics;
+    assert_eq!(
+        (k.fx, k.fy, k.cx, k.cy, k.width, k.height),
+        (585.0, 585.0, 320.0, 240.0, 640, 480)
+    );
+    assert_eq!(seq.depth_units_per_metre, 1000.0);
+    // frame-000000.pose.txt translation column.
+    let gt = seq.ground_truth.as_ref().unwrap();
+    assert_eq!(gt.len(), 600);
+    let t = gt.poses[0].pose.translation.vector;
+    let want = Vector3::new(-3.4045634e-01, 1.6469818e-02, 2.9656917e-01);
+    assert!((t - want).norm() < 1e-9);
+    // Re-orthonormalised rotation stays within the file's 4e-4 of the raw matrix.
+    let r = gt.poses[0].pose.rotation.to_rotation_matrix();
+    assert_close(r[(0, 0)], 0.9093129, 4e-4, "R00");
+    assert_close(r[(1, 2)], 0.045279626, 4e-4, "R12");
+    // Median step between frames is millimetres (CAMERA_SOURCES.md: 7.4 mm over 1000 frames).
+    let mut steps: Vec<f64> = gt
+        .poses
+        .windows(2)
+        .map(|w| (w[1].pose.translation.vector - w[0].pose.translation.vector).norm())
+        .collect();
+    steps.sort_by(f64::total_cmp);
+    assert!(
+        (0.003..0.015).contains(&steps[steps.len() / 2]),
+        "median step {}",
+        steps[300]
+    );
+    let images = seq.load(&seq.frames[0]).unwrap();
+    let depth = images.depth_m.data();
+    let invalid = depth.iter().filter(|d| **d == 0.0).count() as f64 / depth.len() as f64;
+    assert!(
+        (0.05..0.25).contains(&invalid),
+        "invalid fraction {invalid}"
+    );
+    assert!(depth.iter().all(|d| (0.0..10.0).contains(d)));
+    // Ground truth written as TUM reads back to the same poses.
+    let out = tempfile::tempdir().unwrap();
+    let tum = out.path().join("gt.tum");
+    Dataset::Rgbd(seq.clone())
+        .write_ground_truth_tum(&tum)
+        .unwrap();
+    let (back, _) = read_trajectory(&tum).unwrap();
+    assert!(max_diff(gt, &back) < 1e-9);
+}
+
+#[test]
+fn redwood_five_frames_camera_and_log() {
+    // Open3D TestData RGBD (Redwood, section 3).
+    let Some(dir) = data(
+        "redwood_five_frames",
+        "rgbd/open3d_testdata_redwood_5frames",
+    ) else {
+        return;
+    };
+    let Dataset::Rgbd(seq) = Dataset::open(&dir, DatasetFormat::Redwood).unwrap() else {
+        panic!("Redwood is RGB-D");
+    };
+    assert_eq!(seq.frames.len(), 5);
+    assert_close(seq.frames[4].timestamp, 4.0 / 30.0, 1e-12, "last stamp");
+    let k = seq.color_camera.intrinsics;
+    assert_eq!(
+        (k.fx, k.fy, k.cx, k.cy, k.width, k.height),
+        (525.0, 525.0, 319.5, 239.5, 640, 480)
+    );
+    // trajectory.log first block, translation column.
+    let gt = seq.ground_truth.as_ref().unwrap();
+    assert_eq!(gt.len(), 5);
+    let want = Vector3::new(-0.31057997014702826, 0.5730122438481298, 2.1264800183565487);
+    assert!((gt.poses[0].pose.translation.vector - want).norm() < 1e-12);
+    let images = seq.load(&seq.frames[2]).unwrap();
+    assert_eq!(images.color.width(), 640);
+    let valid: Vec<f32> = images
+        .depth_m
+        .data()
+        .iter()
+        .copied()
+        .filter(|d| *d > 0.0)
+        .collect();
+    let mean = valid.iter().sum::<f32>() / valid.len() as f32;
+    assert!((0.5..5.0).contains(&mean), "mean depth {mean} m");
+}
+
+#[test]
+fn euroc_micro_frames_calibration_and_ground_truth() {
+    // EuRoC V1_01_easy micro clip (Kimera-VIO test data + original GT, section 6).
+    let Some(dir) = data("euroc_micro", "stereo/euroc_v101_micro") else {
+        return;
+    };
+    let Dataset::Stereo(seq) = Dataset::open(&dir, DatasetFormat::Euroc).unwrap() else {
+        panic!("EuRoC is stereo");
+    };
+    // data.csv lists 95 rows; only the first 20 PNGs of each camera are kept.
+    assert_eq!(seq.frames.len(), 20);
+    assert_close(
+        seq.frames[0].timestamp,
+        1_403_715_273.262_143,
+        1e-6,
+        "first stamp",
+    );
+    assert_close(
+        seq.frames[19].timestamp,
+        1_403_715_274.212_143,
+        1e-6,
+        "last stamp",
+    );
+    let cam0 = seq.left_camera;
+    let k = cam0.intrinsics;
+    assert_eq!(
+        (k.fx, k.fy, k.cx, k.cy, k.width, k.height),
+        (458.654, 457.296, 367.215, 248.375, 752, 480)
+    );
+    assert_eq!(
+        (cam0.distortion.k1, cam0.distortion.p2),
+        (-0.28340811, 1.76187114e-05)
+    );
+    assert_eq!(seq.right_camera.intrinsics.fx, 457.587);
+    assert_close(seq.baseline_m(), 0.1101, 1e-4, "baseline");
+    assert!(!seq.rectified);
+    // GT: world_from_cam0 = world_from_body (first CSV row) * body_from_cam0 (cam0 T_BS).
+    let gt = seq.ground_truth.as_ref().unwrap();
+    assert_eq!(gt.len(), 999);
+    let q = Quaternion::new(0.060514, -0.828459, -0.058956, -0.553641);
+    let world_from_body = Pose3::from_parts(
+        Translation3::new(0.878612, 2.142470, 0.947262),
+        UnitQuaternion::from_quaternion(q),
+    );
+    let body_from_cam0_t = Vector3::new(-0.0216401454975, -0.064676986768, 0.00981073058949);
+    let want = world_from_body * nalgebra::Point3::from(body_from_cam0_t);
+    assert!((gt.poses[0].pose.translation.vector - want.coords).norm() < 1e-9);
+    let images = seq.load(&seq.frames[0]).unwrap();
+    assert_eq!((images.left.width(), images.left.height()), (752, 480));
+}
+
+#[test]
+fn tum_folder_from_the_fr3_sample_frame() {
+    // TUM fr3/long_office_household first frame (Open3D TestData, section 4), laid out as a
+    // TUM folder with hand-written lists and ground truth.
+    let Some(src) = data(
+        "tum_fr3_sample",
+        "rgbd/tum_fr3_long_office_household_samples",
+    ) else {
+        return;
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp
+        .path()
+        .join("rgbd_dataset_freiburg3_long_office_household");
+    for sub in ["rgb", "depth"] {
+        std::fs::create_dir_all(dir.join(sub)).unwrap();
+    }
+    std::fs::copy(
+        src.join("TUM_color.png"),
+        dir.join("rgb/1341847980.722988.png"),
+    )
+    .unwrap();
+    std::fs::copy(
+        src.join("TUM_depth.png"),
+        dir.join("depth/1341847980.723020.png"),
+    )
+    .unwrap();
+    let rgb = "# color images\n1341847980.722988 rgb/1341847980.722988.png\n\
+               1341847981.0 rgb/missing-depth.png\n";
+    std::fs::write(dir.join("rgb.txt"), rgb).unwrap();
+    std::fs::write(
+        dir.join("depth.txt"),
+        "1341847980.723020 depth/1341847980.723020.png\n",
+    )
+    .unwrap();
+    let gt = "# timestamp tx ty tz qx qy qz qw\n1341847980.7200 -0.6832 2.6909 1.7373 0.0003 0.8617 -0.5072 -0.0145\n";
+    std::fs::write(dir.join("groundtruth.txt"), gt).unwrap();
+
+    let Dataset::Rgbd(seq) = Dataset::open(&dir, DatasetFormat::Tum).unwrap() else {
+        panic!("TUM is RGB-D");
+    };
+    assert_eq!(
+        seq.frames.len(),
+        1,
+        "the second colour image has no depth within 20 ms"
+    );
+    assert_eq!(seq.frames[0].timestamp, 1341847980.722988);
+    let k = seq.color_camera.intrinsics;
+    assert_eq!(
+        (k.fx, k.fy, k.cx, k.cy),
+        (535.4, 539.2, 320.1, 247.6),
+        "fr3 from folder name"
+    );
+    assert_eq!(seq.ground_truth.as_ref().unwrap().len(), 1);
+    let images = seq.load(&seq.frames[0]).unwrap();
+    assert_eq!((images.color.width(), images.depth_m.height()), (640, 480));
+    let valid: Vec<f32> = images
+        .depth_m
+        .data()
+        .iter()
+        .copied()
+        .filter(|d| *d > 0.0)
+        .collect();
+    let mean = valid.iter().sum::<f32>() / valid.len() as f32;
+    assert!(
+        (0.5..5.0).contains(&mean),
+        "mean depth {mean} m at 5000 units/m"
+    );
+
+    // A looser association window and the fr1 calibration, chosen explicitly.
+    let config = TumRgbdConfig {
+        max_time_diff_s: 0.5,
+        camera: TumCamera::Fr1,
+        ..Default::default()
+    };
+    let seq = tum_rgbd::open(&dir, &config).unwrap();
+    assert_eq!(
+        seq.frames.len(),
+        1,
+        "still one depth image for two colour images"
+    );
+    assert_eq!(seq.color_camera.distortion.k1, 0.262383);
+}
