@@ -6,6 +6,14 @@
 //!   be misread.
 //! * Camera frame: x right, y down, z forward (TUM, OpenCV, RealSense).
 //!
+//!
+//! Geometry provided here, each module citing its papers:
+//! * [`absolute_orientation`]: Horn (1987) and Umeyama (1991) closed-form similarity fits, used
+//!   for trajectory alignment and 3D–3D motion estimation.
+//! * [`mod@ransac`]: adaptive RANSAC (Fischler & Bolles 1981) over any [`Estimator`].
+//! * [`camera`]: pinhole projection with Brown–Conrady distortion.
+//! * [`trajectory`]: timestamped poses with SE(3) interpolation; [`point_cloud`]: point sets.
+//!
 //! Nothing in this crate prints, reads files or exits the process.
 
 pub mod absolute_orientation;
