@@ -31,12 +31,12 @@ impl<T> Image<T> {
         })
     }
 
-    /// Width [px].
+    /// Width \[px\].
     pub fn width(&self) -> usize {
         self.width
     }
 
-    /// Height [px].
+    /// Height \[px\].
     pub fn height(&self) -> usize {
         self.height
     }

@@ -21,7 +21,7 @@ use crate::trajectory_file::write_tum;
 pub struct RgbdFrame {
     /// Position in the sequence, from 0.
     pub index: usize,
-    /// Time of the colour image [s].
+    /// Time of the colour image \[s\].
     pub timestamp: f64,
     /// Colour image file.
     pub color: PathBuf,
@@ -34,7 +34,7 @@ pub struct RgbdFrame {
 pub struct StereoFrame {
     /// Position in the sequence, from 0.
     pub index: usize,
-    /// Time of the left image [s].
+    /// Time of the left image \[s\].
     pub timestamp: f64,
     /// Left image file.
     pub left: PathBuf,
@@ -47,7 +47,7 @@ pub struct StereoFrame {
 pub struct RgbdImages {
     /// Colour image.
     pub color: RgbImage,
-    /// Depth [m]; 0.0 where the sensor gave no depth.
+    /// Depth \[m\]; 0.0 where the sensor gave no depth.
     pub depth_m: Image<f32>,
 }
 
@@ -109,7 +109,7 @@ impl RgbdSequence {
 }
 
 impl StereoSequence {
-    /// Distance between the two optical centres [m].
+    /// Distance between the two optical centres \[m\].
     pub fn baseline_m(&self) -> f64 {
         self.right_from_left.translation.vector.norm()
     }
@@ -193,7 +193,7 @@ impl Dataset {
         self.len() == 0
     }
 
-    /// Frame timestamps [s], in order.
+    /// Frame timestamps \[s\], in order.
     pub fn timestamps(&self) -> Vec<f64> {
         match self {
             Self::Rgbd(s) => s.frames.iter().map(|f| f.timestamp).collect(),
@@ -245,7 +245,7 @@ pub(crate) fn has_extension(name: &str, exts: &[&str]) -> bool {
         .is_some_and(|(_, ext)| exts.contains(&ext.to_ascii_lowercase().as_str()))
 }
 
-/// A pinhole camera from `[fx, fy, cx, cy]` [px], `(width, height)` [px] and OpenCV
+/// A pinhole camera from `[fx, fy, cx, cy]` \[px\], `(width, height)` \[px\] and OpenCV
 /// distortion `[k1, k2, p1, p2, k3]`.
 pub(crate) fn camera(k: [f64; 4], size: (usize, usize), distortion: [f64; 5]) -> PinholeCamera {
     let [fx, fy, cx, cy] = k;

@@ -1,6 +1,6 @@
 //! EuRoC MAV stereo folders in the ASL layout (Burri et al., "The EuRoC micro aerial vehicle
 //! datasets", IJRR 2016), with or without the `mav0/` level: `cam0/` and `cam1/` each hold
-//! `data.csv` (`#timestamp [ns],filename`), `data/<t_ns>.png` (raw, distorted, unrectified
+//! `data.csv` (`#timestamp \[ns\],filename`), `data/<t_ns>.png` (raw, distorted, unrectified
 //! grayscale) and `sensor.yaml` (`T_BS` = `body_from_camera`, pinhole `intrinsics`
 //! fu fv cu cv, radial-tangential `distortion_coefficients` k1 k2 p1 p2, `resolution`).
 //!
@@ -79,7 +79,7 @@ pub fn open(dir: &Path) -> Result<StereoSequence, IoError> {
     })
 }
 
-/// Rows of `<cam>/data.csv` whose image exists in `<cam>/data/`: (timestamp [ns], path).
+/// Rows of `<cam>/data.csv` whose image exists in `<cam>/data/`: (timestamp \[ns\], path).
 fn read_image_list(cam_dir: &Path) -> Result<Vec<(u64, PathBuf)>, IoError> {
     let csv = cam_dir.join("data.csv");
     let file = csv.display().to_string();

@@ -64,7 +64,7 @@ pub fn depth_to_metres(raw: &DepthImage, units_per_metre: f64, invalid: &[u16]) 
     })
 }
 
-/// Reads only the header of an image file: (width, height) [px].
+/// Reads only the header of an image file: (width, height) \[px\].
 pub fn image_size(path: &Path) -> Result<(usize, usize), IoError> {
     let reader = open(path)?;
     let (w, h) = reader.into_dimensions().map_err(|e| image_error(path, e))?;

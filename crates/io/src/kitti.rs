@@ -18,20 +18,20 @@ use crate::error::{read_text, IoError};
 use crate::image_io::image_size;
 use crate::trajectory_file::{parse_numbers, read_trajectory, TrajectoryFormat};
 
-/// Frame period when `times.txt` is absent [s] (KITTI records at 10 Hz).
+/// Frame period when `times.txt` is absent \[s\] (KITTI records at 10 Hz).
 const NOMINAL_PERIOD_S: f64 = 0.1;
 
 /// The rectified projection matrices of the two grayscale cameras.
 #[derive(Debug, Clone, PartialEq)]
 pub struct KittiCalib {
-    /// Left (cam0) projection matrix `K [I | 0]` [px].
+    /// Left (cam0) projection matrix `K [I | 0]` \[px\].
     pub p0: Matrix3x4<f64>,
-    /// Right (cam1) projection matrix `K [I | (−b, 0, 0)ᵀ]` [px].
+    /// Right (cam1) projection matrix `K [I | (−b, 0, 0)ᵀ]` \[px\].
     pub p1: Matrix3x4<f64>,
 }
 
 impl KittiCalib {
-    /// Stereo baseline `−P1[0,3] / P1[0,0]` [m].
+    /// Stereo baseline `−P1[0,3] / P1[0,0]` \[m\].
     pub fn baseline_m(&self) -> f64 {
         -self.p1[(0, 3)] / self.p1[(0, 0)]
     }

@@ -27,7 +27,7 @@ use crate::trajectory_file::pose_from_rows;
 pub struct RedwoodConfig {
     /// Raw depth units per metre (Redwood: millimetres, 1000).
     pub depth_units_per_metre: f64,
-    /// Rate used to stamp frames [Hz] (PrimeSense / Kinect: 30).
+    /// Rate used to stamp frames \[Hz\] (PrimeSense / Kinect: 30).
     pub frame_rate_hz: f64,
 }
 
@@ -56,7 +56,10 @@ pub fn open(dir: &Path, config: &RedwoodConfig) -> Result<RgbdSequence, IoError>
     })?;
     let depths = sorted_files(&dir.join("depth"), |n| has_extension(n, &["png"]))?;
     let Some(first_depth) = depths.first() else {
-        return Err(IoError::invalid(dir.join("depth").display(), "no depth image"));
+        return Err(IoError::invalid(
+            dir.join("depth").display(),
+            "no depth image",
+        ));
     };
     if colors.len() != depths.len() {
         let msg = format!("{} colour and {} depth images", colors.len(), depths.len());

@@ -19,7 +19,7 @@ use crate::error::{read_text, IoError};
 use crate::image_io::image_size;
 use crate::trajectory_file::{parse_numbers, pose_from_rows};
 
-/// Frame rate used to stamp frames [Hz].
+/// Frame rate used to stamp frames \[Hz\].
 pub const FRAME_RATE_HZ: f64 = 30.0;
 /// Raw depth units per metre (millimetres).
 const DEPTH_UNITS_PER_METRE: f64 = 1000.0;

@@ -38,7 +38,7 @@ pub enum TumCamera {
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct TumRgbdConfig {
-    /// Largest timestamp difference for a colour–depth pair [s] (`associate.py`: 0.02).
+    /// Largest timestamp difference for a colour–depth pair \[s\] (`associate.py`: 0.02).
     pub max_time_diff_s: f64,
     /// Raw depth units per metre (benchmark: 5000; ORB-SLAM2 uses 5208 for fr2).
     pub depth_units_per_metre: f64,

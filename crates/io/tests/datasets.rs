@@ -1,9 +1,15 @@
 //! Readers and writers on the real files under `$SLAMKIT_DATA` (see its CAMERA_SOURCES.md for
 //! where each file comes from). Each test reports itself skipped when the variable is unset.
 
-use std::path::PathBuf;
+// The fixture helpers below are test code too, outside `#[test]` functions.
+#![allow(clippy::unwrap_used, clippy::panic)]
 
-use slamkit_core::Trajectory;
+use std::path::{Path, PathBuf};
+
+use nalgebra::{Quaternion, Translation3, UnitQuaternion, Vector3};
+use slamkit_core::{Pose3, Trajectory};
+use slamkit_io::tum_rgbd::{TumCamera, TumRgbdConfig};
+use slamkit_io::{kitti, seven_scenes, tum_rgbd, Dataset, DatasetFormat};
 use slamkit_io::{read_trajectory, write_tum, IoError, TrajectoryFormat};
 
 /// `$SLAMKIT_DATA/<rel>`, or `None` (with a skip message) when the variable is unset.
@@ -217,12 +223,6 @@ fn timestamp_only_file_is_rejected_naming_line_1() {
 
 // ---------------------------------------------------------------------------------------------
 // Dataset folders.
-
-use nalgebra::{Quaternion, Translation3, UnitQuaternion, Vector3};
-use slamkit_core::Pose3;
-use slamkit_io::tum_rgbd::{TumCamera, TumRgbdConfig};
-use slamkit_io::{kitti, seven_scenes, tum_rgbd, Dataset, DatasetFormat};
-use std::path::Path;
 
 fn assert_close(got: f64, want: f64, tol: f64, what: &str) {
     assert!((got - want).abs() <= tol, "{what}: {got} vs {want}");
@@ -499,4 +499,267 @@ fn tum_folder_from_the_fr3_sample_frame() {
         "still one depth image for two colour images"
     );
     assert_eq!(seq.color_camera.distortion.k1, 0.262383);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Hand-made broken folders: every defect is an error naming the file and line or frame.
+
+fn write(dir: &Path, rel: &str, content: &str) {
+    let path = dir.join(rel);
+    std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+    std::fs::write(path, content).unwrap();
+}
+
+fn gray_png(dir: &Path, rel: &str) {
+    let path = dir.join(rel);
+    std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+    image::GrayImage::from_pixel(8, 6, image::Luma([90]))
+        .save(path)
+        .unwrap();
+}
+
+fn depth_png(dir: &Path, rel: &str, value: u16) {
+    let path = dir.join(rel);
+    std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+    image::ImageBuffer::from_pixel(8, 6, image::Luma([value]))
+        .save(path)
+        .unwrap();
+}
+
+/// The (file, line) of a parse error, or a panic naming what came instead.
+fn parse_error<T: std::fmt::Debug>(r: Result<T, IoError>) -> (String, usize) {
+    match r {
+        Err(IoError::Parse { file, line, .. }) => (file, line),
+        other => panic!("expected a parse error, got {other:?}"),
+    }
+}
+
+fn error_text<T: std::fmt::Debug>(r: Result<T, IoError>) -> String {
+    r.unwrap_err().to_string()
+}
+
+#[test]
+fn broken_tum_folders() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let config = TumRgbdConfig::default();
+    assert!(error_text(tum_rgbd::open(dir, &config)).contains("rgb.txt"));
+    gray_png(dir, "rgb/1.000.png");
+    write(dir, "depth/1.010.png", "not a png");
+    write(
+        dir,
+        "rgb.txt",
+        "# list\n1.000 rgb/1.000.png\nabc rgb/x.png\n",
+    );
+    write(dir, "depth.txt", "1.010 depth/1.010.png\n");
+    let (file, line) = parse_error(tum_rgbd::open(dir, &config));
+    assert!(file.ends_with("rgb.txt") && line == 3);
+    write(dir, "rgb.txt", "1.000\n");
+    assert_eq!(parse_error(tum_rgbd::open(dir, &config)).1, 1);
+    write(dir, "rgb.txt", "9.000 rgb/1.000.png\n");
+    assert!(error_text(tum_rgbd::open(dir, &config)).contains("no colour/depth pair"));
+    write(dir, "rgb.txt", "1.000 rgb/1.000.png\n");
+    write(
+        dir,
+        "groundtruth.txt",
+        "# gt\n1.0 0 0 0 0 0 0 1\n1.1 0 0 nan 0 0 0 1\n",
+    );
+    let (file, line) = parse_error(tum_rgbd::open(dir, &config));
+    assert!(file.ends_with("groundtruth.txt") && line == 3);
+    // The folder opens once the ground truth is fixed; the corrupt depth image fails at load.
+    write(dir, "groundtruth.txt", "1.0 0 0 0 0 0 0 1\n");
+    let seq = tum_rgbd::open(dir, &config).unwrap();
+    let err = error_text(seq.load(&seq.frames[0]));
+    assert!(err.contains("1.010.png"), "{err}");
+}
+
+#[test]
+fn broken_kitti_folders() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let p0 = "P0: 700 0 600 0 0 700 180 0 0 0 1 0\n";
+    write(
+        dir,
+        "calib.txt",
+        &format!("{p0}P1: 700 0 600 -350 0 700 180 0 0 0 1 0\n"),
+    );
+    assert!(
+        matches!(kitti::open(dir), Err(IoError::Io { .. })),
+        "no image_0/"
+    );
+    for rel in [
+        "image_0/000000.png",
+        "image_0/000001.png",
+        "image_1/000000.png",
+    ] {
+        gray_png(dir, rel);
+    }
+    let err = error_text(kitti::open(dir));
+    assert!(err.contains("frame 1") && err.contains("image_1"), "{err}");
+    gray_png(dir, "image_1/000001.png");
+    write(dir, "times.txt", "0.0\n");
+    assert!(error_text(kitti::open(dir)).contains("1 timestamps for 2 frames"));
+    write(dir, "times.txt", "0.0\nx\n");
+    let (file, line) = parse_error(kitti::open(dir));
+    assert!(file.ends_with("times.txt") && line == 2);
+    write(dir, "times.txt", "0.0\n0.25\n");
+    write(
+        dir,
+        "poses.txt",
+        "1 0 0 0 0 1 0 0 0 0 1 0\n1 0 0 0 0 1 0 0 0 0 1\n",
+    );
+    let (file, line) = parse_error(kitti::open(dir));
+    assert!(file.ends_with("poses.txt") && line == 2);
+    write(
+        dir,
+        "poses.txt",
+        "1 0 0 0 0 1 0 0 0 0 1 0\n1 0 0 1 0 1 0 0 0 0 1 0\n",
+    );
+    let seq = kitti::open(dir).unwrap();
+    assert_eq!(seq.frames[1].timestamp, 0.25);
+    assert_eq!(seq.ground_truth.as_ref().unwrap().poses[1].timestamp, 0.25);
+    assert_eq!(
+        (seq.left_camera.intrinsics.width, seq.baseline_m()),
+        (8, 0.5)
+    );
+    write(dir, "calib.txt", p0);
+    assert!(error_text(kitti::open(dir)).contains("calib.txt"));
+}
+
+#[test]
+fn broken_seven_scenes_folders() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    assert!(
+        matches!(seven_scenes::open(dir), Err(IoError::Invalid { .. })),
+        "empty"
+    );
+    let pose = "1 0 0 0.5\n0 1 0 0\n0 0 1 0\n0 0 0 1\n";
+    gray_png(dir, "frame-000005.color.png");
+    depth_png(dir, "frame-000005.depth.png", 65535);
+    write(dir, "frame-000005.pose.txt", pose);
+    gray_png(dir, "frame-000006.color.png");
+    let err = error_text(seven_scenes::open(dir));
+    assert!(
+        err.contains("frame 6") && err.contains("frame-000006.depth.png"),
+        "{err}"
+    );
+    depth_png(dir, "frame-000006.depth.png", 1500);
+    write(
+        dir,
+        "frame-000006.pose.txt",
+        "1 0 0 0\n0 1 0 0\n0 0 1 zero\n0 0 0 1\n",
+    );
+    let (file, line) = parse_error(seven_scenes::open(dir));
+    assert!(file.ends_with("frame-000006.pose.txt") && line == 3);
+    std::fs::remove_file(dir.join("frame-000006.pose.txt")).unwrap();
+    // Numbering starts at 5; frame 6 has no pose; 65535 is invalid depth.
+    let seq = seven_scenes::open(dir).unwrap();
+    assert_eq!(seq.frames.len(), 2);
+    assert_eq!(seq.frames[0].timestamp, 5.0 / 30.0);
+    assert_eq!(seq.ground_truth.as_ref().unwrap().len(), 1);
+    assert_eq!(seq.depth_camera.intrinsics.fx, 585.0);
+    assert_eq!(
+        seq.load(&seq.frames[0]).unwrap().depth_m.get(0, 0),
+        Some(&0.0)
+    );
+    assert_eq!(
+        seq.load(&seq.frames[1]).unwrap().depth_m.get(7, 5),
+        Some(&1.5)
+    );
+    write(dir, "camera-intrinsics.txt", "585 0 320\n0 585 240\n");
+    assert!(error_text(seven_scenes::open(dir)).contains("camera-intrinsics.txt"));
+}
+
+#[test]
+fn broken_redwood_folders() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    gray_png(dir, "color/00000.png");
+    gray_png(dir, "color/00001.png");
+    depth_png(dir, "depth/00000.png", 1000);
+    let redwood = |d: &Path| slamkit_io::redwood::open(d, &Default::default());
+    assert!(error_text(redwood(dir)).contains("2 colour and 1 depth"));
+    depth_png(dir, "depth/00001.png", 1000);
+    write(
+        dir,
+        "trajectory.log",
+        "0 0 1\n1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n1 1 2\n1 0 0 0\n",
+    );
+    let (file, line) = parse_error(redwood(dir));
+    assert!(file.ends_with("trajectory.log") && line == 6);
+    std::fs::remove_file(dir.join("trajectory.log")).unwrap();
+    write(
+        dir,
+        "camera_primesense.json",
+        "{\"width\": 640, \"height\": 480,\n\"intrinsic_matrix\": [1]}",
+    );
+    let (file, line) = parse_error(redwood(dir));
+    assert!(file.ends_with("camera_primesense.json") && line == 2);
+    std::fs::remove_file(dir.join("camera_primesense.json")).unwrap();
+    let seq = redwood(dir).unwrap();
+    assert!(seq.ground_truth.is_none());
+    assert_eq!(
+        seq.color_camera.intrinsics.width, 8,
+        "default camera at the image size"
+    );
+}
+
+#[test]
+fn broken_euroc_folders() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let yaml = "T_BS:\n  data: [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]\n\
+                resolution: [8, 6]\nintrinsics: [400, 400, 4, 3]\n\
+                distortion_coefficients: [0, 0, 0, 0]\n";
+    write(dir, "mav0/cam0/sensor.yaml", yaml);
+    assert!(error_text(slamkit_io::euroc::open(dir)).contains("cam1/sensor.yaml"));
+    write(
+        dir,
+        "mav0/cam1/sensor.yaml",
+        &yaml.replace("0, 0, 1, 0, 0, 0, 0, 1]", "0, 0, 1, 0.1, 0, 0, 0, 1]"),
+    );
+    write(
+        dir,
+        "mav0/cam0/data.csv",
+        "#timestamp [ns],filename\n1000000000,a.png\n15e8,b.png\n",
+    );
+    let (file, line) = parse_error(slamkit_io::euroc::open(dir));
+    assert!(file.ends_with("data.csv") && line == 3);
+    write(
+        dir,
+        "mav0/cam0/data.csv",
+        "#timestamp [ns],filename\n1000000000,a.png\n1500000000,b.png\n",
+    );
+    write(
+        dir,
+        "mav0/cam1/data.csv",
+        "1000000000,a.png\n1500000000,b.png\n",
+    );
+    assert!(error_text(slamkit_io::euroc::open(dir)).contains("no cam0/cam1 image pair"));
+    for rel in [
+        "mav0/cam0/data/a.png",
+        "mav0/cam0/data/b.png",
+        "mav0/cam1/data/a.png",
+    ] {
+        gray_png(dir, rel);
+    }
+    let seq = slamkit_io::euroc::open(dir).unwrap();
+    assert_eq!(seq.frames.len(), 1, "b.png has no right image");
+    assert_eq!(seq.frames[0].timestamp, 1.0);
+    assert!((seq.baseline_m() - 0.1).abs() < 1e-12);
+}
+
+#[test]
+fn dataset_format_names() {
+    for (name, format) in [
+        ("tum", DatasetFormat::Tum),
+        ("kitti", DatasetFormat::Kitti),
+        ("7scenes", DatasetFormat::SevenScenes),
+        ("redwood", DatasetFormat::Redwood),
+        ("euroc", DatasetFormat::Euroc),
+    ] {
+        assert_eq!(name.parse::<DatasetFormat>().unwrap(), format);
+    }
+    assert!("bag".parse::<DatasetFormat>().is_err());
 }
