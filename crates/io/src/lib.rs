@@ -1,7 +1,13 @@
 //! slamkit-io: readers and writers for datasets, trajectories and maps.
 //!
-//! Every reader returns a typed error naming the file and line or frame on bad input; none
-//! panics.
+//! Every reader returns a typed error ([`IoError`]) naming the file and line or frame on bad
+//! input; none panics.
+//!
+//! * [`trajectory_file`]: TUM, KITTI and EuRoC-CSV trajectories, format told from content.
+//! * [`image_io`]: 8-bit gray / RGB and 16-bit depth images into `slamkit_core::image::Image`.
+//! * Camera datasets, each giving frames (timestamps + paths, images decoded on demand),
+//!   calibrated cameras and `world_from_camera` ground truth: [`tum_rgbd`], [`kitti`],
+//!   [`seven_scenes`], [`redwood`], [`euroc`]; [`Dataset`] opens any of them by name.
 
 pub mod dataset;
 pub mod error;
