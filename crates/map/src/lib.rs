@@ -1,1 +1,28 @@
-//! slamkit-map: occupancy grids, octrees and point maps.
+//! slamkit-map: 2D occupancy grids and the sensor models that read them.
+//!
+//! * [`occupancy_grid`]: log-odds occupancy grid with clamping, Bresenham ray tracing of laser
+//!   scans and copy-on-write tiles so particle-filter maps share memory.
+//! * [`likelihood_field`]: Euclidean distance transform and the likelihood-field sensor model
+//!   that scores a scan against a map (particle-filter SLAM, Monte Carlo localisation).
+//! * [`grid_io`]: ROS `map_server` maps (PGM + YAML) and PNG images, both ways.
+//!
+//! Frames: the grid lives in the world frame (x, y in metres, cell (0, 0) at the grid origin);
+//! scans are inserted with the laser's pose `world_from_laser`.
+
+pub mod distance_transform;
+pub mod error;
+pub mod likelihood_field;
+pub mod occupancy_grid;
+pub mod raycast;
+mod tiles;
+
+#[cfg(test)]
+mod test_room;
+
+pub use error::{GridIoError, MapError};
+pub use likelihood_field::{LikelihoodField, LikelihoodFieldConfig};
+pub use occupancy_grid::{
+    shared_tile_stats, CellBounds, CellIndex, InsertStats, Occupancy, OccupancyGrid,
+    OccupancyGridConfig, TileStats,
+};
+pub use tiles::TILE_SIZE;
