@@ -11,6 +11,7 @@
 
 pub mod distance_transform;
 pub mod error;
+pub mod grid_io;
 pub mod likelihood_field;
 pub mod occupancy_grid;
 pub mod raycast;
@@ -20,6 +21,7 @@ mod tiles;
 mod test_room;
 
 pub use error::{GridIoError, MapError};
+pub use grid_io::{load_map_yaml, save_map_yaml, save_png, MapYaml};
 pub use likelihood_field::{LikelihoodField, LikelihoodFieldConfig};
 pub use occupancy_grid::{
     shared_tile_stats, CellBounds, CellIndex, InsertStats, Occupancy, OccupancyGrid,
