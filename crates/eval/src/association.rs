@@ -21,9 +21,9 @@ pub const DEFAULT_MAX_DIFF_S: f64 = 0.02;
 /// How poses of the reference and the estimate are paired.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Pairing {
-    /// Nearest timestamp within `max_diff_s` [s] (evo's `--t_max_diff`).
+    /// Nearest timestamp within `max_diff_s` \[s\] (evo's `--t_max_diff`).
     NearestTime {
-        /// Largest accepted time difference [s].
+        /// Largest accepted time difference \[s\].
         max_diff_s: f64,
     },
     /// Pose `i` with pose `i` (KITTI: timestamps are line indices). Both trajectories must

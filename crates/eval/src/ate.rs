@@ -52,11 +52,11 @@ impl FromStr for Alignment {
 /// ATE of one estimate, with what a plot or report needs.
 #[derive(Debug, Clone)]
 pub struct AteResult {
-    /// Statistics of the position errors [m].
+    /// Statistics of the position errors \[m\].
     pub stats: ErrorStats,
-    /// Error of each associated pair [m], in pair order.
+    /// Error of each associated pair \[m\], in pair order.
     pub errors_m: Vec<f64>,
-    /// Timestamp of the estimated pose of each pair [s].
+    /// Timestamp of the estimated pose of each pair \[s\].
     pub timestamps: Vec<f64>,
     /// Reference position of each pair.
     pub reference_positions: Vec<Point3<f64>>,

@@ -1,9 +1,9 @@
 //! slamkit-eval: accuracy of an estimated trajectory against ground truth, with the metrics the
 //! field reports, computed so that they match the reference tools to rounding.
 //!
-//! * [`ate`] — absolute trajectory error after SE(3) / Sim(3) / no alignment (Sturm et al.,
+//! * [`ate()`] — absolute trajectory error after SE(3) / Sim(3) / no alignment (Sturm et al.,
 //!   IROS 2012; alignment by Umeyama, TPAMI 1991), as `evo_ape` with `--pose_relation trans_part`.
-//! * [`rpe`] — relative pose error over a delta in frames or metres (Sturm et al. 2012), as
+//! * [`rpe()`] — relative pose error over a delta in frames or metres (Sturm et al. 2012), as
 //!   `evo_rpe`.
 //! * [`relations_error`] — the relations metric of Kümmerle et al., Autonomous Robots 2009,
 //!   used by the 2D lidar benchmark logs.

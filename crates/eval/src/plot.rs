@@ -15,7 +15,7 @@ use std::ops::Range;
 use std::path::Path;
 use std::sync::OnceLock;
 
-/// The paths to draw in the top view, in the reference frame [m].
+/// The paths to draw in the top view, in the reference frame \[m\].
 #[derive(Debug, Clone, Copy)]
 pub struct TopView<'a> {
     /// Ground-truth positions.
@@ -31,7 +31,7 @@ pub struct ErrorSeries<'a> {
     pub title: &'a str,
     /// Axis label of the error, e.g. `"error [m]"`.
     pub label: &'a str,
-    /// Time of each error [s].
+    /// Time of each error \[s\].
     pub timestamps: &'a [f64],
     /// The errors.
     pub errors: &'a [f64],

@@ -5,7 +5,7 @@
 //!
 //! For each relation `(t1, t2, δ*)` (the motion from the pose at t1 to the pose at t2, in the
 //! frame of t1): the estimated motion is `δ = P(t1)⁻¹ P(t2)`, the error `ε = δ*⁻¹ δ`; the
-//! translational error is `|trans(ε)|` [m] and the rotational error `|angle(ε)|` wrapped into
+//! translational error is `|trans(ε)|` \[m\] and the rotational error `|angle(ε)|` wrapped into
 //! [0°, 180°]. Reported are mean ± population std of both (Kümmerle eq. 2 with absolute rather
 //! than squared errors; the squared means are given too). Estimated poses are found by
 //! timestamp within [`RELATION_STAMP_TOLERANCE_S`]; a relation with an end that has no pose is
@@ -17,15 +17,15 @@ use serde::{Deserialize, Serialize};
 use slamkit_core::{Pose3, Trajectory};
 
 /// Largest time difference between a relation's timestamp and the estimated pose used for it
-/// [s]. Relation stamps equal scan stamps (to 6 decimals) in the benchmark logs.
+/// \[s\]. Relation stamps equal scan stamps (to 6 decimals) in the benchmark logs.
 pub const RELATION_STAMP_TOLERANCE_S: f64 = 1e-3;
 
 /// One ground-truth relative motion.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GroundTruthRelation {
-    /// Time of the first pose [s].
+    /// Time of the first pose \[s\].
     pub t1: f64,
-    /// Time of the second pose [s].
+    /// Time of the second pose \[s\].
     pub t2: f64,
     /// Motion from the first pose to the second, in the first pose's frame.
     pub t1_from_t2: Pose3,
@@ -35,17 +35,17 @@ pub struct GroundTruthRelation {
 /// `slamkit eval relations` (DESIGN.md), plus the squared means and `missing`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct RelationsStats {
-    /// Mean translational error [m].
+    /// Mean translational error \[m\].
     pub trans_mean: f64,
-    /// Population std of the translational error [m].
+    /// Population std of the translational error \[m\].
     pub trans_std: f64,
-    /// Mean rotational error [deg].
+    /// Mean rotational error \[deg\].
     pub rot_mean_deg: f64,
-    /// Population std of the rotational error [deg].
+    /// Population std of the rotational error \[deg\].
     pub rot_std_deg: f64,
-    /// Mean squared translational error [m²].
+    /// Mean squared translational error \[m²\].
     pub trans_sq_mean: f64,
-    /// Mean squared rotational error [deg²].
+    /// Mean squared rotational error \[deg²\].
     pub rot_sq_mean_deg2: f64,
     /// Relations scored.
     pub count: usize,

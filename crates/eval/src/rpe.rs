@@ -2,7 +2,7 @@
 //!
 //! Sturm et al., IROS 2012, §V-B: for a pair of associated poses `(i, j)`,
 //! `E = (Q_i⁻¹ Q_j)⁻¹ (P_i⁻¹ P_j)` with `Q` the reference and `P` the estimate; the error is the
-//! norm of the translation of `E` [m]. It measures local drift and needs no alignment (a rigid
+//! norm of the translation of `E` \[m\]. It measures local drift and needs no alignment (a rigid
 //! change of the estimate's world frame cancels out).
 //!
 //! Which pairs `(i, j)` are used follows `evo.core.filters` (indices into the *associated*
@@ -50,7 +50,7 @@ pub struct RpeConfig {
     pub unit: DeltaUnit,
     /// Pair every pose with the one `delta` later, rather than only consecutive blocks.
     pub all_pairs: bool,
-    /// In metres with `all_pairs`: accepted distance error, as a fraction of `delta` [-].
+    /// In metres with `all_pairs`: accepted distance error, as a fraction of `delta` \[-\].
     pub rel_delta_tol: f64,
 }
 
@@ -68,11 +68,11 @@ impl Default for RpeConfig {
 /// RPE of one estimate.
 #[derive(Debug, Clone)]
 pub struct RpeResult {
-    /// Statistics of the relative translation errors [m].
+    /// Statistics of the relative translation errors \[m\].
     pub stats: ErrorStats,
-    /// Error of each pair [m].
+    /// Error of each pair \[m\].
     pub errors_m: Vec<f64>,
-    /// Timestamp of the later estimated pose of each pair [s].
+    /// Timestamp of the later estimated pose of each pair \[s\].
     pub timestamps: Vec<f64>,
 }
 
