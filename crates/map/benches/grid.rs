@@ -3,6 +3,18 @@
 //!
 //! Input: 180 beams one degree apart (the Intel Research Lab log's SICK LMS geometry) in a
 //! simulated 16 m × 16 m room, ranges about 8 m, 5 cm cells.
+//!
+//! Results (2-core shared x86-64 VM, other builds running, `cargo bench`):
+//!
+//! | bench                               | time    |
+//! |-------------------------------------|---------|
+//! | map/insert_scan_180_beams_8m        | 57 µs   |
+//! | map/likelihood_score_points_180     | 0.87 µs |
+//! | map/likelihood_score_scan_180       | 0.98 µs |
+//! | map/likelihood_field_build_16m_room | 4.7 ms  |
+//!
+//! Insertion went 111 → 78 µs with the branch-free fixed-point line walk, and → 57 µs with
+//! byte marks, incremental beam directions and one `Arc::make_mut` per tile.
 
 // A bench aborts on setup failure; criterion's macros generate undocumented functions.
 #![allow(clippy::expect_used, missing_docs)]

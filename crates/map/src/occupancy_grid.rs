@@ -406,9 +406,14 @@ impl OccupancyGrid {
         rays.clear();
         let mut stats = InsertStats::default();
         let t = world_from_laser.translation.vector;
-        let heading_rad = world_from_laser.rotation.angle();
         let clear_m = self.config.no_return_clear_m.min(scan.max_range_m);
+        // Beam directions by repeated rotation: one sin_cos per scan instead of one per beam.
+        let first = world_from_laser.rotation * nalgebra::UnitComplex::new(scan.angle_min_rad);
+        let increment = nalgebra::UnitComplex::new(scan.angle_increment_rad);
+        let mut direction = *first.complex();
         for (i, &range_m) in scan.ranges_m.iter().enumerate() {
+            let (cos, sin) = (direction.re, direction.im);
+            direction *= *increment.complex();
             let (reach_m, hit) = if scan.is_hit(i) {
                 if range_m <= self.config.max_usable_range_m {
                     (range_m, true)
@@ -421,7 +426,6 @@ impl OccupancyGrid {
                 stats.ignored += 1;
                 continue;
             };
-            let (sin, cos) = (heading_rad + scan.beam_angle_rad(i)).sin_cos();
             let Some(end) = self.cell_at(&Point2::new(t.x + reach_m * cos, t.y + reach_m * sin))
             else {
                 stats.ignored += 1;
@@ -437,34 +441,62 @@ impl OccupancyGrid {
         stats
     }
 
-    /// Applies the marks to the cells, one 64-cell tile row at a time.
+    /// Applies the marks to the cells tile by tile, so each touched tile is made writable
+    /// ([`Arc::make_mut`], an atomic operation) once per scan rather than once per row.
     fn apply_marks(&mut self, window: &MarkWindow, marks: &[u8]) {
-        let (l_hit, l_miss, l_min, l_max) = (self.l_hit, self.l_miss, self.l_min, self.l_max);
-        for (segment, segment_marks) in marks.chunks_exact(TILE_SIZE).enumerate() {
-            if segment_marks.iter().fold(UNTOUCHED, |a, m| a | m) == UNTOUCHED {
-                continue;
-            }
-            let cy = window.y0 + (segment / window.tiles_per_row) as i32;
-            let tx = (window.x0 >> TILE_BITS) + (segment % window.tiles_per_row) as i32;
-            let Some(index) = self.store.tile_index(tx, cy >> TILE_BITS) else {
-                continue;
-            };
-            let tile: &mut Tile = self.store.tile_mut(index);
-            let start = local_index(0, cy);
-            let row = &mut tile.cells[start..start + TILE_SIZE];
-            // Branch-free so it vectorises: untouched cells add 0 and are already in range.
-            for (cell, &mark) in row.iter_mut().zip(segment_marks) {
-                let step = match mark {
-                    HIT => l_hit,
-                    PASSED => l_miss,
-                    _ => 0.0,
+        let stride = window.tiles_per_row * TILE_SIZE;
+        let mut band_start = 0;
+        while band_start < window.rows {
+            let cy0 = window.y0 + band_start as i32;
+            let band_end = window
+                .rows
+                .min(band_start + TILE_SIZE - (cy0 & (TILE_SIZE as i32 - 1)) as usize);
+            for column in 0..window.tiles_per_row {
+                let segment = |row: usize| {
+                    let start = row * stride + column * TILE_SIZE;
+                    &marks[start..start + TILE_SIZE]
                 };
-                let value = *cell + step;
-                // Comparisons rather than f32::max/min: no NaN handling, plain minps/maxps.
-                let value = if value < l_min { l_min } else { value };
-                *cell = if value > l_max { l_max } else { value };
+                let touched = |row: &usize| segment(*row).iter().fold(UNTOUCHED, |a, m| a | m) != 0;
+                let Some(first) = (band_start..band_end).find(touched) else {
+                    continue;
+                };
+                let tx = (window.x0 >> TILE_BITS) + column as i32;
+                let Some(index) = self.store.tile_index(tx, cy0 >> TILE_BITS) else {
+                    continue;
+                };
+                let tile: &mut Tile = self.store.tile_mut(index);
+                for row in (first..band_end).filter(touched) {
+                    let start = local_index(0, window.y0 + row as i32);
+                    let cells = &mut tile.cells[start..start + TILE_SIZE];
+                    apply_row(
+                        cells,
+                        segment(row),
+                        self.l_hit,
+                        self.l_miss,
+                        self.l_min,
+                        self.l_max,
+                    );
+                }
             }
+            band_start = band_end;
         }
+    }
+}
+
+/// Adds `l_hit` to the cells marked hit and `l_miss` to those marked passed, clamped to
+/// `[l_min, l_max]`. Branch-free so it vectorises: untouched cells add 0 and are already in range.
+#[inline]
+fn apply_row(cells: &mut [f32], marks: &[u8], l_hit: f32, l_miss: f32, l_min: f32, l_max: f32) {
+    for (cell, &mark) in cells.iter_mut().zip(marks) {
+        let step = match mark {
+            HIT => l_hit,
+            PASSED => l_miss,
+            _ => 0.0,
+        };
+        let value = *cell + step;
+        // Comparisons rather than f32::max/min: no NaN handling, plain minps/maxps.
+        let value = if value < l_min { l_min } else { value };
+        *cell = if value > l_max { l_max } else { value };
     }
 }
 

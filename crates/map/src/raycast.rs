@@ -30,7 +30,7 @@ pub fn bresenham(x0: i32, y0: i32, x1: i32, y1: i32, mut visit: impl FnMut(i32, 
         let slope = (dy << 32) / steps;
         let mut minor = (i64::from(y0) << 32) + half;
         let mut x = x0;
-        for _ in 0..=steps {
+        for _ in 0..steps + 1 {
             visit(x, (minor >> 32) as i32);
             x += step;
             minor += slope;
@@ -40,7 +40,7 @@ pub fn bresenham(x0: i32, y0: i32, x1: i32, y1: i32, mut visit: impl FnMut(i32, 
         let slope = (dx << 32) / steps;
         let mut minor = (i64::from(x0) << 32) + half;
         let mut y = y0;
-        for _ in 0..=steps {
+        for _ in 0..steps + 1 {
             visit((minor >> 32) as i32, y);
             y += step;
             minor += slope;
