@@ -5,7 +5,7 @@
 //! the lower envelope of parabolas rooted at the sites, found in O(n). Running it down every
 //! column and then along every row gives the exact squared Euclidean distance in O(width·height).
 
-/// Squared distance [cells²] from every cell of a `width × height` row-major image to the nearest
+/// Squared distance \[cells²\] from every cell of a `width × height` row-major image to the nearest
 /// cell where `is_site` is true; `f32::INFINITY` everywhere when there is no site.
 pub fn squared_distance_transform(is_site: &[bool], width: usize, height: usize) -> Vec<f32> {
     debug_assert_eq!(is_site.len(), width * height);

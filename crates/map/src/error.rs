@@ -15,19 +15,19 @@ pub enum MapError {
     /// A pose holds NaN or infinite values.
     #[error("pose is not finite: x {x_m}, y {y_m}, angle {angle_rad}")]
     NonFinitePose {
-        /// Translation x [m].
+        /// Translation x \[m\].
         x_m: f64,
-        /// Translation y [m].
+        /// Translation y \[m\].
         y_m: f64,
-        /// Rotation [rad].
+        /// Rotation \[rad\].
         angle_rad: f64,
     },
     /// A point lies beyond the cell indices a grid can address.
     #[error("point ({x_m}, {y_m}) is outside the addressable map area")]
     OutsideMap {
-        /// x [m].
+        /// x \[m\].
         x_m: f64,
-        /// y [m].
+        /// y \[m\].
         y_m: f64,
     },
 }

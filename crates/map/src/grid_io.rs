@@ -1,7 +1,7 @@
 //! Occupancy grids as ROS `map_server` maps (PGM + YAML) and PNG images, written and read.
 //!
 //! Format (ROS `map_server` documentation, "YAML format" and "Value interpretation"): the YAML
-//! file names the image and gives `resolution` [m/pixel], `origin` `[x, y, yaw]` (the world pose
+//! file names the image and gives `resolution` \[m/pixel\], `origin` `[x, y, yaw]` (the world pose
 //! of the lower-left pixel), `negate`, `occupied_thresh` and `free_thresh`. A pixel of value `v`
 //! has occupancy `p = (255 - v) / 255` (`v / 255` when negated); `p > occupied_thresh` is occupied,
 //! `p < free_thresh` free, anything else unknown. Images are written trinary as `map_saver` does:
@@ -27,15 +27,15 @@ pub const UNKNOWN_PIXEL: u8 = 205;
 pub struct MapYaml {
     /// Image file, relative to the YAML file unless absolute.
     pub image: PathBuf,
-    /// Side of a pixel [m].
+    /// Side of a pixel \[m\].
     pub resolution_m: f64,
-    /// World pose of the lower-left pixel's corner: x [m], y [m], yaw [rad].
+    /// World pose of the lower-left pixel's corner: x \[m\], y \[m\], yaw \[rad\].
     pub origin: [f64; 3],
     /// Whether white means occupied.
     pub negate: bool,
-    /// Pixels with occupancy above this are occupied [0..1].
+    /// Pixels with occupancy above this are occupied \[0..1\].
     pub occupied_thresh: f64,
-    /// Pixels with occupancy below this are free [0..1].
+    /// Pixels with occupancy below this are free \[0..1\].
     pub free_thresh: f64,
 }
 
@@ -58,13 +58,13 @@ impl MapYaml {
 /// A grid rendered as a trinary 8-bit image.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrinaryImage {
-    /// Width [pixels].
+    /// Width \[pixels\].
     pub width: u32,
-    /// Height [pixels].
+    /// Height \[pixels\].
     pub height: u32,
     /// Row-major pixels, top row first.
     pub pixels: Vec<u8>,
-    /// World position of the lower-left pixel's corner [m].
+    /// World position of the lower-left pixel's corner \[m\].
     pub origin_m: Point2<f64>,
 }
 

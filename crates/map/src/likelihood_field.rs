@@ -24,17 +24,17 @@ use slamkit_core::{LaserScan, Pose2};
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct LikelihoodFieldConfig {
-    /// Standard deviation of a hit around the nearest obstacle [m].
+    /// Standard deviation of a hit around the nearest obstacle \[m\].
     pub sigma_hit_m: f64,
-    /// Weight of the Gaussian hit component [0..1].
+    /// Weight of the Gaussian hit component \[0..1\].
     pub z_hit: f64,
-    /// Weight of the uniform random-reading component [0..1]; must be positive.
+    /// Weight of the uniform random-reading component \[0..1\]; must be positive.
     pub z_rand: f64,
-    /// Range over which random readings are uniform, the sensor's maximum range [m].
+    /// Range over which random readings are uniform, the sensor's maximum range \[m\].
     pub z_max_m: f64,
-    /// Distances are capped here; farther end points all score alike [m].
+    /// Distances are capped here; farther end points all score alike \[m\].
     pub max_distance_m: f64,
-    /// Cells whose occupancy probability exceeds this are obstacles [0..1].
+    /// Cells whose occupancy probability exceeds this are obstacles \[0..1\].
     pub obstacle_min_probability: f64,
 }
 
@@ -86,7 +86,7 @@ impl LikelihoodFieldConfig {
 #[derive(Debug, Clone)]
 pub struct LikelihoodField {
     config: LikelihoodFieldConfig,
-    /// World position of the lower-left corner of field cell (0, 0) [m].
+    /// World position of the lower-left corner of field cell (0, 0) \[m\].
     origin_m: Vector2<f64>,
     inv_resolution: f64,
     width: usize,
@@ -161,7 +161,7 @@ impl LikelihoodField {
     }
 
     /// Distance from world point `point_m` to the nearest obstacle, capped at
-    /// `max_distance_m` [m].
+    /// `max_distance_m` \[m\].
     pub fn distance_m(&self, point_m: &Point2<f64>) -> f64 {
         self.index(point_m.x, point_m.y)
             .and_then(|i| self.distance_m.get(i))

@@ -13,7 +13,8 @@
 //! applied in raster order, one tile row at a time. Beams that return nothing clear free space up to a limit but mark no
 //! obstacle.
 //!
-//! Cells live in copy-on-write tiles ([`crate::tiles`]); the grid grows as the robot explores.
+//! Cells live in copy-on-write 64 × 64 tiles (see `tiles.rs`); the grid grows as the robot
+//! explores.
 //! Cell `(i, j)` covers world `[origin + i·res, origin + (i+1)·res) × [...]`; indices may be
 //! negative. Unknown cells hold log-odds 0.
 
@@ -33,21 +34,21 @@ const MAX_CELL_INDEX: f64 = (1u32 << 28) as f64;
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct OccupancyGridConfig {
-    /// Side length of a cell [m].
+    /// Side length of a cell \[m\].
     pub resolution_m: f64,
-    /// Probability that the cell holding a beam's end point is occupied [0..1].
+    /// Probability that the cell holding a beam's end point is occupied \[0..1\].
     pub p_hit: f64,
-    /// Probability that a cell a beam passed through is occupied [0..1].
+    /// Probability that a cell a beam passed through is occupied \[0..1\].
     pub p_miss: f64,
-    /// Lower clamp on a cell's probability [0..1].
+    /// Lower clamp on a cell's probability \[0..1\].
     pub p_min: f64,
-    /// Upper clamp on a cell's probability [0..1].
+    /// Upper clamp on a cell's probability \[0..1\].
     pub p_max: f64,
     /// "No return" beams clear free space up to this distance, and never beyond the scan's
-    /// maximum range [m].
+    /// maximum range \[m\].
     pub no_return_clear_m: f64,
     /// Hits farther than this are not trusted as obstacles; their beam clears free space up to
-    /// this distance instead (GMapping's `maxUrange`) [m].
+    /// this distance instead (GMapping's `maxUrange`) \[m\].
     pub max_usable_range_m: f64,
 }
 
@@ -259,12 +260,12 @@ impl OccupancyGrid {
         &self.config
     }
 
-    /// Side length of a cell [m].
+    /// Side length of a cell \[m\].
     pub fn resolution_m(&self) -> f64 {
         self.config.resolution_m
     }
 
-    /// World position of the lower-left corner of cell (0, 0) [m].
+    /// World position of the lower-left corner of cell (0, 0) \[m\].
     pub fn origin_m(&self) -> Point2<f64> {
         Point2::from(self.origin_m)
     }
@@ -286,7 +287,7 @@ impl OccupancyGrid {
         })
     }
 
-    /// World position of the centre of `cell` [m].
+    /// World position of the centre of `cell` \[m\].
     pub fn cell_center_m(&self, cell: CellIndex) -> Point2<f64> {
         let res = self.config.resolution_m;
         Point2::new(

@@ -5,7 +5,7 @@
 
 use slamkit_core::{LaserScan, Pose2};
 
-/// Range from `(x, y)` along unit direction `(cos, sin)` to the walls of the room [m].
+/// Range from `(x, y)` along unit direction `(cos, sin)` to the walls of the room \[m\].
 pub fn range_to_walls(x: f64, y: f64, cos: f64, sin: f64, half_m: f64) -> f64 {
     let along = |p: f64, d: f64| {
         if d > 1e-12 {
