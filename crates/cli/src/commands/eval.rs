@@ -1,12 +1,195 @@
-//! `slamkit eval`: placeholder until the evaluation module lands.
+//! `slamkit eval`: accuracy of a trajectory file against ground truth — ATE, RPE (as evo's
+//! `evo_ape` / `evo_rpe`, to rounding) and the relations metric of the 2D lidar benchmarks.
+//!
+//! Trajectory files may be TUM, KITTI or EuRoC CSV (told from their content); when either file
+//! is KITTI, poses pair by index, otherwise by nearest timestamp within `--max-diff`.
 
-use crate::output::not_yet;
+use anyhow::Context;
+use clap::builder::{PossibleValuesParser, TypedValueParser};
+use slamkit_core::Trajectory;
+use slamkit_eval::plot::{plot_errors, ErrorSeries, TopView};
+use slamkit_eval::{
+    ate, rpe, Alignment, DeltaUnit, ErrorStats, Pairing, RpeConfig, DEFAULT_MAX_DIFF_S,
+};
+use slamkit_io::{read_trajectory, TrajectoryFormat};
+use std::path::{Path, PathBuf};
 
 /// Arguments of `slamkit eval`.
 #[derive(Debug, clap::Args)]
-pub struct EvalArgs {}
+pub struct EvalArgs {
+    /// The metric to compute.
+    #[command(subcommand)]
+    pub metric: EvalMetric,
+}
+
+/// The metrics of `slamkit eval`.
+#[derive(Debug, clap::Subcommand)]
+pub enum EvalMetric {
+    /// Absolute trajectory error after alignment (evo_ape, translation part).
+    Ate(AteArgs),
+    /// Relative pose error over a delta in frames or metres (evo_rpe, translation part).
+    Rpe(RpeArgs),
+}
+
+/// Input trajectories and output options shared by `ate` and `rpe`.
+#[derive(Debug, clap::Args)]
+pub struct PairArgs {
+    /// Ground-truth trajectory (TUM, KITTI or EuRoC CSV).
+    #[arg(long)]
+    pub gt: PathBuf,
+    /// Estimated trajectory (TUM, KITTI or EuRoC CSV).
+    #[arg(long)]
+    pub est: PathBuf,
+    /// Largest time difference for pairing poses by timestamp [s] (evo's --t_max_diff).
+    #[arg(long, default_value_t = DEFAULT_MAX_DIFF_S)]
+    pub max_diff: f64,
+    /// Print one JSON object instead of a table.
+    #[arg(long)]
+    pub json: bool,
+    /// Write a figure (top view and error over time) to this .png or .svg file.
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+}
+
+/// Arguments of `slamkit eval ate`.
+#[derive(Debug, clap::Args)]
+pub struct AteArgs {
+    #[command(flatten)]
+    pub input: PairArgs,
+    /// Alignment of the estimate onto the ground truth (evo: se3 = -a, sim3 = -as).
+    #[arg(long, default_value = "se3", value_parser = alignment_parser())]
+    pub align: Alignment,
+}
+
+/// Arguments of `slamkit eval rpe`.
+#[derive(Debug, clap::Args)]
+pub struct RpeArgs {
+    #[command(flatten)]
+    pub input: PairArgs,
+    /// Distance between the poses of a pair, in --unit.
+    #[arg(long, default_value_t = 1.0)]
+    pub delta: f64,
+    /// Unit of --delta: associated frames or metres of travelled path.
+    #[arg(long, default_value = "frames", value_parser = unit_parser())]
+    pub unit: DeltaUnit,
+    /// Pair every pose with the one --delta later (evo's --all_pairs), not only consecutive blocks.
+    #[arg(long)]
+    pub all_pairs: bool,
+}
+
+fn alignment_parser() -> impl TypedValueParser<Value = Alignment> {
+    PossibleValuesParser::new(["se3", "sim3", "none"]).try_map(|s| s.parse::<Alignment>())
+}
+
+fn unit_parser() -> impl TypedValueParser<Value = DeltaUnit> {
+    PossibleValuesParser::new(["frames", "m"]).map(|s| match s.as_str() {
+        "m" => DeltaUnit::Metres,
+        _ => DeltaUnit::Frames,
+    })
+}
 
 /// Runs `slamkit eval`.
-pub fn run(_args: &EvalArgs) -> anyhow::Result<()> {
-    not_yet("eval", "evaluation, issue #2")
+pub fn run(args: &EvalArgs) -> anyhow::Result<()> {
+    match &args.metric {
+        EvalMetric::Ate(a) => run_ate(a),
+        EvalMetric::Rpe(a) => run_rpe(a),
+    }
+}
+
+fn run_ate(args: &AteArgs) -> anyhow::Result<()> {
+    let (gt, est, pairing) = load_pair(&args.input)?;
+    let result = ate(&gt, &est, pairing, args.align).context("computing ATE")?;
+    let title = format!("ATE ({} alignment)", args.align);
+    if let Some(path) = &args.input.plot {
+        let view = TopView {
+            reference: &result.reference_positions,
+            estimate: &result.aligned_estimate_positions,
+        };
+        let series = ErrorSeries {
+            title: &title,
+            label: "ATE [m]",
+            timestamps: &result.timestamps,
+            errors: &result.errors_m,
+        };
+        plot_errors(path, &view, &series)?;
+    }
+    print_stats(&title, &result.stats, args.input.json)
+}
+
+fn run_rpe(args: &RpeArgs) -> anyhow::Result<()> {
+    let (gt, est, pairing) = load_pair(&args.input)?;
+    let config = RpeConfig {
+        delta: args.delta,
+        unit: args.unit,
+        all_pairs: args.all_pairs,
+        ..RpeConfig::default()
+    };
+    let result = rpe(&gt, &est, pairing, &config).context("computing RPE")?;
+    let title = format!(
+        "RPE (delta {} {}{})",
+        args.delta,
+        args.unit,
+        if args.all_pairs { ", all pairs" } else { "" }
+    );
+    if let Some(path) = &args.input.plot {
+        // The top view shows the estimate rigidly aligned; RPE itself needs no alignment.
+        let aligned = ate(&gt, &est, pairing, Alignment::Se3)
+            .or_else(|_| ate(&gt, &est, pairing, Alignment::None))
+            .context("aligning the estimate for the plot")?;
+        let view = TopView {
+            reference: &aligned.reference_positions,
+            estimate: &aligned.aligned_estimate_positions,
+        };
+        let series = ErrorSeries {
+            title: &title,
+            label: "RPE [m]",
+            timestamps: &result.timestamps,
+            errors: &result.errors_m,
+        };
+        plot_errors(path, &view, &series)?;
+    }
+    print_stats(&title, &result.stats, args.input.json)
+}
+
+fn read(path: &Path) -> anyhow::Result<(Trajectory, TrajectoryFormat)> {
+    read_trajectory(path).with_context(|| format!("reading trajectory {}", path.display()))
+}
+
+/// Reads ground truth and estimate and chooses how to pair them.
+fn load_pair(args: &PairArgs) -> anyhow::Result<(Trajectory, Trajectory, Pairing)> {
+    if !(args.max_diff.is_finite() && args.max_diff >= 0.0) {
+        anyhow::bail!(
+            "--max-diff must be a non-negative number of seconds, got {}",
+            args.max_diff
+        );
+    }
+    let (gt, gt_format) = read(&args.gt)?;
+    let (est, est_format) = read(&args.est)?;
+    let pairing = if gt_format == TrajectoryFormat::Kitti || est_format == TrajectoryFormat::Kitti {
+        Pairing::Index
+    } else {
+        Pairing::NearestTime {
+            max_diff_s: args.max_diff,
+        }
+    };
+    Ok((gt, est, pairing))
+}
+
+fn print_stats(title: &str, stats: &ErrorStats, json: bool) -> anyhow::Result<()> {
+    if json {
+        println!("{}", serde_json::to_string(stats)?);
+        return Ok(());
+    }
+    println!("{title}, {} pairs", stats.pairs);
+    for (name, value) in [
+        ("rmse", stats.rmse),
+        ("mean", stats.mean),
+        ("median", stats.median),
+        ("std", stats.std),
+        ("min", stats.min),
+        ("max", stats.max),
+    ] {
+        println!("  {name:<7}{value:>12.6} m");
+    }
+    Ok(())
 }

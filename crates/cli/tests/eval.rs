@@ -1,0 +1,121 @@
+//! `slamkit eval` end to end on real data, against published reference values:
+//!
+//! * evo 1.38 on its own test data (github.com/MichaelGrupp/evo, `test/data`):
+//!   `evo_ape tum freiburg1_xyz-groundtruth.txt freiburg1_xyz-rgbdslam.txt -a --t_max_diff 0.02`
+//!   gives RMSE 0.013473 m over 786 pairs, `evo_rpe ... --delta 1 --delta_unit f` 0.005759 m.
+//!
+//! Skipped when `SLAMKIT_DATA` is not set.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+fn data(test: &str) -> Option<PathBuf> {
+    match std::env::var_os("SLAMKIT_DATA") {
+        Some(dir) => Some(PathBuf::from(dir)),
+        None => {
+            eprintln!("skipped: {test}: SLAMKIT_DATA not set");
+            None
+        }
+    }
+}
+
+fn eval_json(args: &[&str]) -> serde_json::Value {
+    let out = Command::new(env!("CARGO_BIN_EXE_slamkit"))
+        .arg("eval")
+        .args(args)
+        .arg("--json")
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "slamkit eval {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert_eq!(text.lines().count(), 1, "one JSON object: {text}");
+    serde_json::from_str(&text).unwrap()
+}
+
+fn assert_near(json: &serde_json::Value, key: &str, expected: f64, tol: f64) {
+    let got = json[key].as_f64().unwrap_or(f64::NAN);
+    assert!(
+        (got - expected).abs() <= tol,
+        "{key}: got {got}, expected {expected} ± {tol}"
+    );
+}
+
+#[test]
+fn ate_and_rpe_match_evo_on_fr1_xyz() {
+    let Some(data) = data("ate_and_rpe_match_evo_on_fr1_xyz") else {
+        return;
+    };
+    let dir = data.join("trajectories/evo_test_data");
+    let gt = dir.join("freiburg1_xyz-groundtruth.txt");
+    let est = dir.join("freiburg1_xyz-rgbdslam.txt");
+    let (gt, est) = (gt.to_str().unwrap(), est.to_str().unwrap());
+    let ate = eval_json(&["ate", "--gt", gt, "--est", est, "--align", "se3"]);
+    assert_near(&ate, "rmse", 0.013473, 5e-7);
+    assert_eq!(ate["pairs"], 786);
+    for key in ["mean", "median", "std", "min", "max"] {
+        assert!(ate[key].is_f64(), "missing {key}");
+    }
+    let rpe = eval_json(&[
+        "rpe", "--gt", gt, "--est", est, "--delta", "1", "--unit", "frames",
+    ]);
+    assert_near(&rpe, "rmse", 0.005759, 5e-7);
+    assert_eq!(rpe["pairs"], 785);
+
+    let out = tempfile::tempdir().unwrap();
+    let plot = out.path().join("ate.svg");
+    eval_json(&[
+        "ate",
+        "--gt",
+        gt,
+        "--est",
+        est,
+        "--plot",
+        plot.to_str().unwrap(),
+    ]);
+    assert!(std::fs::metadata(&plot).unwrap().len() > 1000);
+}
+
+#[test]
+fn kitti_pairs_by_index_like_evo() {
+    let Some(data) = data("kitti_pairs_by_index_like_evo") else {
+        return;
+    };
+    // evo_ape kitti KITTI_00_gt.txt KITTI_00_ORB.txt -a (evo 1.38): RMSE 1.303449715 m
+    let dir = data.join("trajectories/evo_test_data");
+    let gt = dir.join("KITTI_00_gt.txt");
+    let est = dir.join("KITTI_00_ORB.txt");
+    let ate = eval_json(&[
+        "ate",
+        "--gt",
+        gt.to_str().unwrap(),
+        "--est",
+        est.to_str().unwrap(),
+    ]);
+    assert_near(&ate, "rmse", 1.303449715, 1e-8);
+    assert_eq!(ate["pairs"], 4541);
+}
+
+#[test]
+fn bad_input_fails_with_a_message() {
+    let dir = tempfile::tempdir().unwrap();
+    let garbage = dir.path().join("garbage.txt");
+    std::fs::write(&garbage, "not a trajectory\n").unwrap();
+    let g = garbage.to_str().unwrap();
+    for args in [
+        vec!["ate", "--gt", g, "--est", g],
+        vec!["ate", "--gt", "/nonexistent.tum", "--est", g],
+        vec!["rpe", "--gt", g, "--est", g, "--unit", "parsecs"],
+    ] {
+        let out = Command::new(env!("CARGO_BIN_EXE_slamkit"))
+            .arg("eval")
+            .args(&args)
+            .output()
+            .unwrap();
+        assert!(!out.status.success(), "{args:?} should fail");
+        assert!(!out.stderr.is_empty(), "{args:?} should say why");
+    }
+}
