@@ -1,1 +1,27 @@
-//! slamkit-lidar: 2D scan matching, ICP-SLAM, particle-filter SLAM and localisation.
+//! slamkit-lidar: 2D scan matching and ICP-SLAM.
+//!
+//! Frames: a scan's beams are measured in the laser frame and brought into the robot `base`
+//! frame with [`LaserScan::base_from_laser`](slamkit_core::LaserScan); poses estimated here are
+//! `world_from_base`, with the world frame anchored at the first usable scan.
+//!
+//! * [`icp`]: point-to-point and point-to-line ICP (Besl & McKay 1992; Chen & Medioni 1992;
+//!   Censi, "An ICP variant using a point-to-line metric", ICRA 2008) with robust kernels and
+//!   Gauss–Newton or Levenberg–Marquardt steps.
+//! * [`correlative`]: exhaustive correlative scan matching with a two-level branch and bound
+//!   (Olson, "Real-time correlative scan matching", ICRA 2009; Hess et al., ICRA 2016) for poor
+//!   initial guesses.
+//! * [`icp_slam`]: the incremental map builder of MRPT's icp-slam: each scan is matched against a
+//!   point map of keyframes, and inserted into it when the robot has moved far enough.
+//!
+//! Nothing in this crate prints, reads files or exits the process.
+
+pub mod cloud;
+pub mod correlative;
+mod error;
+pub mod icp;
+pub mod icp_slam;
+pub mod nn;
+pub mod point_map;
+pub mod sim_scan;
+
+pub use error::LidarError;

@@ -1,0 +1,150 @@
+//! Scan preprocessing: beam end points in the base frame, voxel downsampling, and surface
+//! normals from local principal component analysis (the normals point-to-line ICP needs;
+//! Censi 2008 takes them from the two nearest points, PCA over a few neighbours is the same
+//! idea made robust to range noise).
+
+use crate::nn::PointIndex;
+use nalgebra::{Matrix2, Point2, Vector2};
+use slamkit_core::LaserScan;
+use std::collections::HashMap;
+
+/// The end points of the beams of `scan` with range in `[min_range_m, max_range_m)` and below the
+/// scanner's own "no return" range, in the robot base frame. NaN, negative and no-return
+/// readings are dropped.
+pub fn scan_points(scan: &LaserScan, min_range_m: f64, max_range_m: f64) -> Vec<Point2<f64>> {
+    scan.ranges_m
+        .iter()
+        .enumerate()
+        .filter(|&(i, r)| scan.is_hit(i) && *r >= min_range_m && *r < max_range_m)
+        .map(|(i, r)| {
+            let (s, c) = scan.beam_angle_rad(i).sin_cos();
+            scan.base_from_laser * Point2::new(r * c, r * s)
+        })
+        .collect()
+}
+
+/// Keeps the first point falling in each square voxel of side `voxel_m`, in input order (so the
+/// result is deterministic). A non-positive or non-finite voxel size keeps every point.
+pub fn voxel_downsample(points: &[Point2<f64>], voxel_m: f64) -> Vec<Point2<f64>> {
+    if !(voxel_m.is_finite() && voxel_m > 0.0) {
+        return points.to_vec();
+    }
+    let mut seen = HashMap::with_capacity(points.len());
+    points
+        .iter()
+        .filter(|p| seen.insert(voxel_key(p, voxel_m), ()).is_none())
+        .copied()
+        .collect()
+}
+
+/// Integer voxel coordinates of `p` for voxels of side `voxel_m`.
+pub fn voxel_key(p: &Point2<f64>, voxel_m: f64) -> (i64, i64) {
+    (
+        (p.x / voxel_m).floor() as i64,
+        (p.y / voxel_m).floor() as i64,
+    )
+}
+
+/// Unit normal of each point from the PCA of its `neighbours` nearest points within
+/// `max_radius_m`: the eigenvector of the smallest eigenvalue of their covariance. `None` when
+/// fewer than 3 neighbours are close enough or the neighbourhood is not line-like (smallest over
+/// largest eigenvalue above `max_flatness`, e.g. a corner or scattered clutter).
+pub fn estimate_normals(
+    points: &[Point2<f64>],
+    neighbours: usize,
+    max_radius_m: f64,
+    max_flatness: f64,
+) -> Vec<Option<Vector2<f64>>> {
+    let index = PointIndex::new(points.to_vec(), None);
+    points
+        .iter()
+        .map(|p| {
+            let near: Vec<Point2<f64>> = index
+                .nearest_k(p, neighbours.max(3))
+                .iter()
+                .filter(|n| n.distance_m <= max_radius_m)
+                .filter_map(|n| index.point(n.index).copied())
+                .collect();
+            line_normal(&near, max_flatness)
+        })
+        .collect()
+}
+
+/// Normal of the best-fit line through `pts`, or `None` when they do not look like a line.
+fn line_normal(pts: &[Point2<f64>], max_flatness: f64) -> Option<Vector2<f64>> {
+    if pts.len() < 3 {
+        return None;
+    }
+    let n = pts.len() as f64;
+    let mean = pts.iter().fold(Vector2::zeros(), |acc, p| acc + p.coords) / n;
+    let cov = pts.iter().fold(Matrix2::zeros(), |acc, p| {
+        let d = p.coords - mean;
+        acc + d * d.transpose()
+    }) / n;
+    let eig = cov.symmetric_eigen();
+    let (small, large) = if eig.eigenvalues[0] <= eig.eigenvalues[1] {
+        (0, 1)
+    } else {
+        (1, 0)
+    };
+    let (l_small, l_large) = (eig.eigenvalues[small], eig.eigenvalues[large]);
+    if l_large.is_nan() || l_large <= 0.0 || l_small / l_large > max_flatness {
+        return None;
+    }
+    let normal = eig.eigenvectors.column(small).into_owned();
+    let norm = normal.norm();
+    (norm > 0.0 && norm.is_finite()).then(|| normal / norm)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use slamkit_core::Pose2;
+
+    #[test]
+    fn points_skip_bad_beams_and_apply_mounting() {
+        let scan = LaserScan {
+            timestamp: 0.0,
+            angle_min_rad: 0.0,
+            angle_increment_rad: std::f64::consts::FRAC_PI_2,
+            ranges_m: vec![1.0, f64::NAN, -2.0, 50.0, 0.01],
+            max_range_m: 50.0,
+            odometry: None,
+            base_from_laser: Pose2::new(Vector2::new(0.5, 0.0), 0.0),
+        };
+        let pts = scan_points(&scan, 0.05, 40.0);
+        assert_eq!(pts.len(), 1);
+        assert!((pts[0] - Point2::new(1.5, 0.0)).norm() < 1e-12);
+    }
+
+    #[test]
+    fn voxel_keeps_first_per_cell() {
+        let pts = vec![
+            Point2::new(0.01, 0.01),
+            Point2::new(0.02, 0.03),
+            Point2::new(0.2, 0.0),
+            Point2::new(-0.01, 0.0),
+        ];
+        let out = voxel_downsample(&pts, 0.1);
+        assert_eq!(out, vec![pts[0], pts[2], pts[3]]);
+        assert_eq!(voxel_downsample(&pts, f64::NAN).len(), 4);
+    }
+
+    #[test]
+    fn normals_of_a_wall_and_a_blob() {
+        let wall: Vec<Point2<f64>> = (0..20).map(|i| Point2::new(i as f64 * 0.1, 2.0)).collect();
+        for n in estimate_normals(&wall, 5, 0.5, 0.1) {
+            let n = n.unwrap();
+            assert!(n.x.abs() < 1e-9 && (n.y.abs() - 1.0).abs() < 1e-9);
+        }
+        let blob = vec![
+            Point2::new(0.0, 0.0),
+            Point2::new(0.1, 0.0),
+            Point2::new(0.0, 0.1),
+            Point2::new(0.1, 0.1),
+        ];
+        assert!(estimate_normals(&blob, 4, 0.5, 0.1)
+            .iter()
+            .all(Option::is_none));
+    }
+}

@@ -1,0 +1,295 @@
+//! Correlative scan matching (Olson, "Real-time correlative scan matching", ICRA 2009), with the
+//! exact branch and bound of Hess et al., "Real-time loop closure in 2D LIDAR SLAM", ICRA 2016,
+//! cut to two levels.
+//!
+//! The target points are rasterised into a likelihood field (each cell holds
+//! `exp(−d²/2σ²)` for the distance `d` to the nearest target point). Every pose in a window
+//! around the initial guess — rotations at the step where the farthest point moves by about
+//! one cell, translations at one cell — is scored by the mean field value under the moved source
+//! points. Rather than scoring every pose, translations are grouped in `coarse_cells`² blocks
+//! whose bound is read from a sliding-window maximum of the field; blocks are expanded best
+//! bound first, and the search stops once no bound beats the best exact score found, so the
+//! answer equals the exhaustive one. It needs no odometry, only a window large enough to hold
+//! the true pose.
+
+use crate::LidarError;
+use nalgebra::{Point2, Vector2};
+use serde::{Deserialize, Serialize};
+use slamkit_core::Pose2;
+
+/// Correlative matcher parameters.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct CorrelativeConfig {
+    /// Half-width of the translation window around the guess, in x and y [m].
+    pub linear_window_m: f64,
+    /// Half-width of the rotation window around the guess [rad].
+    pub angular_window_rad: f64,
+    /// Cell size of the likelihood field and translation step [m].
+    pub resolution_m: f64,
+    /// Standard deviation of the likelihood field around each target point [m].
+    pub sigma_m: f64,
+    /// Largest rotation step [rad]; the step is smaller when the scan reaches farther.
+    pub max_angular_step_rad: f64,
+    /// Side of the translation blocks bounded together, in cells (>= 1).
+    pub coarse_cells: usize,
+    /// Fewer source points than this is an error.
+    pub min_points: usize,
+}
+
+impl Default for CorrelativeConfig {
+    fn default() -> Self {
+        Self {
+            linear_window_m: 0.5,
+            angular_window_rad: 20f64.to_radians(),
+            resolution_m: 0.05,
+            sigma_m: 0.05,
+            max_angular_step_rad: 1f64.to_radians(),
+            coarse_cells: 4,
+            min_points: 10,
+        }
+    }
+}
+
+/// Best pose found by the search.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CorrelativeResult {
+    /// The pose of the source in the target frame.
+    pub target_from_source: Pose2,
+    /// Mean likelihood of the moved source points, in [0, 1].
+    pub score: f64,
+}
+
+/// A likelihood field on a regular grid.
+struct Field {
+    origin: Point2<f64>,
+    resolution_m: f64,
+    width: usize,
+    height: usize,
+    cells: Vec<f32>,
+}
+
+impl Field {
+    /// The field of `points` over the square of half-side `half_m` around `centre`.
+    fn new(
+        points: &[Point2<f64>],
+        centre: &Point2<f64>,
+        half_m: f64,
+        res: f64,
+        sigma: f64,
+    ) -> Self {
+        let side = (2.0 * half_m / res).ceil() as usize + 1;
+        let origin = centre - Vector2::new(half_m, half_m);
+        let mut field = Self {
+            origin,
+            resolution_m: res,
+            width: side,
+            height: side,
+            cells: vec![0.0; side * side],
+        };
+        let reach = (3.0 * sigma / res).ceil() as i64;
+        for p in points {
+            let (ci, cj) = field.cell(p);
+            let (w, h) = (side as i64, side as i64);
+            if ci < -reach || cj < -reach || ci >= w + reach || cj >= h + reach {
+                continue;
+            }
+            for j in cj - reach..=cj + reach {
+                for i in ci - reach..=ci + reach {
+                    let Some(k) = field.offset(i, j) else {
+                        continue;
+                    };
+                    let c = origin + Vector2::new(i as f64 + 0.5, j as f64 + 0.5) * res;
+                    let v = (-(c - p).norm_squared() / (2.0 * sigma * sigma)).exp() as f32;
+                    if let Some(cell) = field.cells.get_mut(k) {
+                        *cell = cell.max(v);
+                    }
+                }
+            }
+        }
+        field
+    }
+
+    /// Cell of `p`; far-off (or NaN) points map to cells far outside the grid, clamped so that
+    /// offsets added later cannot overflow.
+    fn cell(&self, p: &Point2<f64>) -> (i64, i64) {
+        let d = (p - self.origin) / self.resolution_m;
+        let clamp = |v: f64| v.clamp(-1e9, 1e9).floor() as i64;
+        (clamp(d.x), clamp(d.y))
+    }
+
+    fn offset(&self, i: i64, j: i64) -> Option<usize> {
+        let (i, j) = (usize::try_from(i).ok()?, usize::try_from(j).ok()?);
+        (i < self.width && j < self.height).then_some(j * self.width + i)
+    }
+
+    fn value(&self, i: i64, j: i64) -> f64 {
+        self.offset(i, j)
+            .and_then(|k| self.cells.get(k))
+            .map_or(0.0, |v| f64::from(*v))
+    }
+
+    /// Cell `(i, j)` of the result holds the maximum over cells `[i, i+w) × [j, j+w)`.
+    fn sliding_max(&self, w: usize) -> Self {
+        let mut rows = self.cells.clone();
+        for j in 0..self.height {
+            for i in 0..self.width {
+                let end = (i + w).min(self.width);
+                rows[j * self.width + i] = self.cells[j * self.width + i..j * self.width + end]
+                    .iter()
+                    .fold(0.0, |a: f32, b| a.max(*b));
+            }
+        }
+        let mut cells = rows.clone();
+        for j in 0..self.height {
+            for i in 0..self.width {
+                let end = (j + w).min(self.height);
+                cells[j * self.width + i] = (j..end)
+                    .map(|jj| rows[jj * self.width + i])
+                    .fold(0.0, f32::max);
+            }
+        }
+        Self {
+            cells,
+            origin: self.origin,
+            ..*self
+        }
+    }
+
+    /// Sum of the field under `cells` shifted by `(di, dj)`.
+    fn score(&self, cells: &[(i64, i64)], di: i64, dj: i64) -> f64 {
+        cells.iter().map(|&(i, j)| self.value(i + di, j + dj)).sum()
+    }
+}
+
+/// A block of translations at one rotation, with its upper bound.
+struct Block {
+    bound: f64,
+    angle: usize,
+    di: i64,
+    dj: i64,
+}
+
+/// Finds the pose of `source` against `target` (both point sets) within the configured window
+/// around `initial` (`target_from_source`).
+pub fn correlative_match(
+    source: &[Point2<f64>],
+    target: &[Point2<f64>],
+    initial: &Pose2,
+    config: &CorrelativeConfig,
+) -> Result<CorrelativeResult, LidarError> {
+    validate(config)?;
+    if source.len() < config.min_points.max(1) {
+        return Err(LidarError::TooFewPoints {
+            got: source.len(),
+            min: config.min_points.max(1),
+        });
+    }
+    let res = config.resolution_m;
+    let reach_m = source.iter().map(|p| p.coords.norm()).fold(0.0, f64::max);
+    let centre = Point2::from(initial.translation.vector);
+    let half = reach_m + config.linear_window_m + 4.0 * config.sigma_m + res;
+    let field = Field::new(target, &centre, half, res, config.sigma_m);
+    let coarse = config.coarse_cells.max(1);
+    let bound_field = field.sliding_max(coarse);
+
+    // Rotation step: the farthest point moves by at most one cell (Olson 2009, eq. 11).
+    let step = (1.0 - res * res / (2.0 * reach_m.max(res).powi(2)))
+        .clamp(-1.0, 1.0)
+        .acos()
+        .min(config.max_angular_step_rad)
+        .max(1e-4);
+    let n_ang = (config.angular_window_rad / step).ceil() as i64;
+    let theta0 = initial.rotation.angle();
+    let angles: Vec<f64> = (-n_ang..=n_ang).map(|a| theta0 + a as f64 * step).collect();
+    let rotated: Vec<Vec<(i64, i64)>> = angles
+        .iter()
+        .map(|&theta| {
+            let pose = Pose2::new(initial.translation.vector, theta);
+            source.iter().map(|p| field.cell(&(pose * p))).collect()
+        })
+        .collect();
+
+    let w = (config.linear_window_m / res).ceil() as i64;
+    let starts: Vec<i64> = (-w..=w).step_by(coarse).collect();
+    let mut blocks: Vec<Block> = Vec::with_capacity(angles.len() * starts.len().pow(2));
+    for (angle, cells) in rotated.iter().enumerate() {
+        for &di in &starts {
+            for &dj in &starts {
+                let bound = bound_field.score(cells, di, dj);
+                blocks.push(Block {
+                    bound,
+                    angle,
+                    di,
+                    dj,
+                });
+            }
+        }
+    }
+    blocks.sort_by(|a, b| b.bound.total_cmp(&a.bound));
+
+    let mut best = (f64::NEG_INFINITY, n_ang as usize, 0, 0);
+    let c = coarse as i64;
+    for block in &blocks {
+        if block.bound <= best.0 {
+            break;
+        }
+        let Some(cells) = rotated.get(block.angle) else {
+            continue;
+        };
+        for di in block.di..(block.di + c).min(w + 1) {
+            for dj in block.dj..(block.dj + c).min(w + 1) {
+                let s = field.score(cells, di, dj);
+                if s > best.0 {
+                    best = (s, block.angle, di, dj);
+                }
+            }
+        }
+    }
+    let (score, angle, di, dj) = best;
+    let theta = angles.get(angle).copied().unwrap_or(theta0);
+    let t = initial.translation.vector + Vector2::new(di as f64, dj as f64) * res;
+    Ok(CorrelativeResult {
+        target_from_source: Pose2::new(t, theta),
+        score: score.max(0.0) / source.len() as f64,
+    })
+}
+
+fn validate(config: &CorrelativeConfig) -> Result<(), LidarError> {
+    let checks = [
+        (
+            "linear_window_m",
+            config.linear_window_m,
+            config.linear_window_m >= 0.0,
+        ),
+        (
+            "angular_window_rad",
+            config.angular_window_rad,
+            config.angular_window_rad >= 0.0,
+        ),
+        (
+            "resolution_m",
+            config.resolution_m,
+            config.resolution_m > 0.0,
+        ),
+        ("sigma_m", config.sigma_m, config.sigma_m > 0.0),
+        (
+            "max_angular_step_rad",
+            config.max_angular_step_rad,
+            config.max_angular_step_rad > 0.0,
+        ),
+    ];
+    for (field, value, ok) in checks {
+        if !(ok && value.is_finite()) {
+            return Err(LidarError::InvalidConfig {
+                field,
+                value: value.to_string(),
+                reason: "out of range (windows >= 0, steps and sizes > 0, finite)",
+            });
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests;

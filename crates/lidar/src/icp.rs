@@ -1,0 +1,410 @@
+//! 2D iterative closest point: point-to-point (Besl & McKay 1992) and point-to-line (Chen &
+//! Medioni 1992; Censi, "An ICP variant using a point-to-line metric", ICRA 2008).
+//!
+//! Each iteration pairs every source point with its nearest target point (k-d tree), rejects
+//! pairs farther than a distance threshold, weights the rest with a robust kernel (iteratively
+//! reweighted least squares; Zhang 1997 for the M-estimators) and takes one Gauss–Newton or
+//! Levenberg–Marquardt step on the pose. Like MRPT's `CICP`, the threshold starts wide and, each
+//! time the pose stops moving, is multiplied by a factor below one until it reaches its minimum:
+//! wide thresholds pull in a poor guess, narrow ones give a precise, outlier-free finish.
+//!
+//! The pose increment is applied on the left, in the target frame:
+//! `target_from_source ← exp(δ) · target_from_source`, so for a transformed point `q` the
+//! Jacobian of `q` with respect to `δ = (δx, δy, δθ)` is `[I | (−q_y, q_x)ᵀ]`.
+
+use crate::nn::PointIndex;
+use crate::LidarError;
+use nalgebra::{Matrix3, Point2, Vector2, Vector3};
+use serde::{Deserialize, Serialize};
+use slamkit_core::Pose2;
+
+/// The error ICP minimises.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum IcpMetric {
+    /// Euclidean distance between paired points.
+    PointToPoint,
+    /// Distance from the source point to the line through the target point along its normal;
+    /// pairs whose target has no normal fall back to point-to-point.
+    PointToLine,
+}
+
+/// Robust M-estimator applied to residuals; `kernel_scale_m` is its scale `k`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RobustKernel {
+    /// Plain least squares.
+    None,
+    /// Quadratic below `k`, linear above.
+    Huber,
+    /// `k²/2 · ln(1 + (r/k)²)`: heavy outliers keep a small weight.
+    Cauchy,
+    /// Tukey's biweight: residuals beyond `k` get zero weight.
+    Tukey,
+}
+
+/// How each pose step is computed from the normal equations.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum IcpSolver {
+    /// Undamped Gauss–Newton: fast, but fails on degenerate geometry.
+    GaussNewton,
+    /// Levenberg–Marquardt (Marquardt 1963 damping `λ·diag(H)`): a step is kept only if it
+    /// lowers the robust cost, so a long corridor cannot throw the pose far along its axis.
+    LevenbergMarquardt,
+}
+
+/// ICP parameters. Defaults follow MRPT's `icp-slam_demo_LM.ini` where it has an equivalent.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct IcpConfig {
+    /// Error metric.
+    pub metric: IcpMetric,
+    /// Robust kernel on residuals.
+    pub kernel: RobustKernel,
+    /// Scale of the robust kernel at the smallest correspondence threshold [m]; while the
+    /// threshold is wider the scale grows in proportion, so the kernel never rejects the pairs
+    /// the threshold admits.
+    pub kernel_scale_m: f64,
+    /// Step computation.
+    pub solver: IcpSolver,
+    /// Upper limit on iterations over all thresholds (MRPT `maxIterations`).
+    pub max_iterations: u32,
+    /// Upper limit on iterations at one threshold: correspondences that flip between two
+    /// neighbours can keep the pose dithering, and must not keep a wide threshold forever.
+    pub max_iterations_per_threshold: u32,
+    /// Initial correspondence distance threshold [m] (MRPT `thresholdDist`).
+    pub max_correspondence_dist_m: f64,
+    /// Smallest the threshold may shrink to [m] (MRPT `smallestThresholdDist`); it is also the
+    /// distance within which a point counts as matched in the goodness score.
+    pub min_correspondence_dist_m: f64,
+    /// Factor applied to the threshold each time the pose converges (MRPT `ALFA`), in (0, 1].
+    pub dist_shrink_factor: f64,
+    /// A step with translation below this counts as converged [m].
+    pub min_step_trans_m: f64,
+    /// A step with rotation below this counts as converged [rad].
+    pub min_step_rot_rad: f64,
+    /// Fewer correspondences than this is an error.
+    pub min_correspondences: usize,
+}
+
+impl Default for IcpConfig {
+    fn default() -> Self {
+        Self {
+            metric: IcpMetric::PointToLine,
+            kernel: RobustKernel::Cauchy,
+            kernel_scale_m: 0.05,
+            solver: IcpSolver::LevenbergMarquardt,
+            max_iterations: 100,
+            max_iterations_per_threshold: 10,
+            max_correspondence_dist_m: 0.3,
+            min_correspondence_dist_m: 0.05,
+            dist_shrink_factor: 0.8,
+            min_step_trans_m: 1e-5,
+            min_step_rot_rad: 1e-5,
+            min_correspondences: 10,
+        }
+    }
+}
+
+impl IcpConfig {
+    /// Checks every field's range.
+    pub fn validate(&self) -> Result<(), LidarError> {
+        let positive = |field, value: f64| {
+            if value.is_finite() && value > 0.0 {
+                Ok(())
+            } else {
+                Err(invalid(field, value, "must be finite and > 0"))
+            }
+        };
+        positive("kernel_scale_m", self.kernel_scale_m)?;
+        positive("max_correspondence_dist_m", self.max_correspondence_dist_m)?;
+        positive("min_correspondence_dist_m", self.min_correspondence_dist_m)?;
+        positive("min_step_trans_m", self.min_step_trans_m)?;
+        positive("min_step_rot_rad", self.min_step_rot_rad)?;
+        if !(self.dist_shrink_factor > 0.0 && self.dist_shrink_factor <= 1.0) {
+            return Err(invalid(
+                "dist_shrink_factor",
+                self.dist_shrink_factor,
+                "must be in (0, 1]",
+            ));
+        }
+        if self.max_iterations_per_threshold == 0 {
+            return Err(invalid("max_iterations_per_threshold", 0.0, "must be >= 1"));
+        }
+        if self.min_correspondences < 3 {
+            return Err(invalid(
+                "min_correspondences",
+                self.min_correspondences as f64,
+                "must be >= 3",
+            ));
+        }
+        Ok(())
+    }
+}
+
+fn invalid(field: &'static str, value: f64, reason: &'static str) -> LidarError {
+    LidarError::InvalidConfig {
+        field,
+        value: value.to_string(),
+        reason,
+    }
+}
+
+/// Outcome of one alignment.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct IcpResult {
+    /// The estimated pose of the source in the target frame.
+    pub target_from_source: Pose2,
+    /// Fraction of source points whose nearest target point is within the final threshold.
+    pub goodness: f64,
+    /// Iterations run.
+    pub iterations: u32,
+    /// True when the pose stopped moving at the smallest threshold before an iteration limit.
+    pub converged: bool,
+    /// Correspondences used in the last iteration.
+    pub correspondences: usize,
+    /// Root mean square residual of the last iteration's correspondences [m].
+    pub rms_residual_m: f64,
+}
+
+/// One source–target pair.
+#[derive(Debug, Clone, Copy)]
+struct Pair {
+    source: Point2<f64>,
+    target: Point2<f64>,
+    normal: Option<Vector2<f64>>,
+}
+
+/// Aligns `source` points to `target`, starting from `initial` (`target_from_source`).
+pub fn align(
+    source: &[Point2<f64>],
+    target: &PointIndex,
+    initial: &Pose2,
+    config: &IcpConfig,
+) -> Result<IcpResult, LidarError> {
+    config.validate()?;
+    if source.len() < config.min_correspondences {
+        return Err(LidarError::TooFewPoints {
+            got: source.len(),
+            min: config.min_correspondences,
+        });
+    }
+    let mut pose = *initial;
+    let mut max_dist = config
+        .max_correspondence_dist_m
+        .max(config.min_correspondence_dist_m);
+    let mut lambda = 1e-3;
+    let mut iterations = 0;
+    let mut at_threshold = 0;
+    let mut converged = false;
+    let mut pairs = Vec::with_capacity(source.len());
+    while iterations < config.max_iterations {
+        iterations += 1;
+        at_threshold += 1;
+        pair_up(source, target, &pose, max_dist, config.metric, &mut pairs);
+        if pairs.len() < config.min_correspondences {
+            return Err(LidarError::TooFewCorrespondences {
+                got: pairs.len(),
+                min: config.min_correspondences,
+            });
+        }
+        let kernel = Kernel {
+            kind: config.kernel,
+            scale_m: config.kernel_scale_m * max_dist / config.min_correspondence_dist_m,
+        };
+        let step = match config.solver {
+            IcpSolver::GaussNewton => gauss_newton_step(&pairs, &pose, kernel)?,
+            IcpSolver::LevenbergMarquardt => lm_step(&pairs, &pose, kernel, &mut lambda),
+        };
+        pose = exp_step(&step) * pose;
+        let small =
+            step.xy().norm() < config.min_step_trans_m && step.z.abs() < config.min_step_rot_rad;
+        if small || at_threshold >= config.max_iterations_per_threshold {
+            if max_dist <= config.min_correspondence_dist_m {
+                converged = small;
+                break;
+            }
+            max_dist = (max_dist * config.dist_shrink_factor).max(config.min_correspondence_dist_m);
+            at_threshold = 0;
+        }
+    }
+    let (sum_sq, n) = pairs.iter().fold((0.0, 0usize), |(s, n), p| {
+        let r = residuals(p, &pose);
+        (s + r.norm_squared(), n + 1)
+    });
+    Ok(IcpResult {
+        target_from_source: pose,
+        goodness: goodness(source, target, &pose, max_dist),
+        iterations,
+        converged,
+        correspondences: pairs.len(),
+        rms_residual_m: (sum_sq / n.max(1) as f64).sqrt(),
+    })
+}
+
+/// Fraction of `source` points that, moved by `target_from_source`, have a target point within
+/// `max_dist_m`.
+pub fn goodness(
+    source: &[Point2<f64>],
+    target: &PointIndex,
+    target_from_source: &Pose2,
+    max_dist_m: f64,
+) -> f64 {
+    if source.is_empty() {
+        return 0.0;
+    }
+    let matched = source
+        .iter()
+        .filter(|p| {
+            target
+                .nearest(&(target_from_source * *p))
+                .is_some_and(|n| n.distance_m <= max_dist_m)
+        })
+        .count();
+    matched as f64 / source.len() as f64
+}
+
+/// Pairs each source point with its nearest target point within `max_dist_m`.
+fn pair_up(
+    source: &[Point2<f64>],
+    target: &PointIndex,
+    pose: &Pose2,
+    max_dist_m: f64,
+    metric: IcpMetric,
+    pairs: &mut Vec<Pair>,
+) {
+    pairs.clear();
+    pairs.extend(source.iter().filter_map(|p| {
+        let nn = target.nearest(&(pose * p))?;
+        if nn.distance_m > max_dist_m {
+            return None;
+        }
+        Some(Pair {
+            source: *p,
+            target: *target.point(nn.index)?,
+            normal: match metric {
+                IcpMetric::PointToLine => target.normal(nn.index),
+                IcpMetric::PointToPoint => None,
+            },
+        })
+    }));
+}
+
+/// Residual of a pair at `pose`: `(n·(q − m), 0)` with a normal, `q − m` without.
+fn residuals(pair: &Pair, pose: &Pose2) -> Vector2<f64> {
+    let d = pose * pair.source - pair.target;
+    match pair.normal {
+        Some(n) => Vector2::new(n.dot(&d), 0.0),
+        None => d,
+    }
+}
+
+/// A robust kernel with its current scale.
+#[derive(Debug, Clone, Copy)]
+struct Kernel {
+    kind: RobustKernel,
+    scale_m: f64,
+}
+
+/// Robust cost of all pairs at `pose`.
+fn cost(pairs: &[Pair], pose: &Pose2, kernel: Kernel) -> f64 {
+    pairs
+        .iter()
+        .map(|p| rho(kernel.kind, kernel.scale_m, residuals(p, pose).norm()))
+        .sum()
+}
+
+/// Normal equations `(H, g)` of the robust least-squares problem at `pose` (IRLS weights).
+fn normal_equations(pairs: &[Pair], pose: &Pose2, kernel: Kernel) -> (Matrix3<f64>, Vector3<f64>) {
+    let mut h = Matrix3::zeros();
+    let mut g = Vector3::zeros();
+    for pair in pairs {
+        let q = pose * pair.source;
+        let r = residuals(pair, pose);
+        let w = weight(kernel.kind, kernel.scale_m, r.norm());
+        let rows: [(Vector3<f64>, f64); 2] = match pair.normal {
+            Some(n) => [
+                (Vector3::new(n.x, n.y, n.y * q.x - n.x * q.y), r.x),
+                (Vector3::zeros(), 0.0),
+            ],
+            None => [
+                (Vector3::new(1.0, 0.0, -q.y), r.x),
+                (Vector3::new(0.0, 1.0, q.x), r.y),
+            ],
+        };
+        for (j, res) in rows {
+            h += w * j * j.transpose();
+            g += w * j * res;
+        }
+    }
+    (h, g)
+}
+
+fn gauss_newton_step(
+    pairs: &[Pair],
+    pose: &Pose2,
+    kernel: Kernel,
+) -> Result<Vector3<f64>, LidarError> {
+    let (h, g) = normal_equations(pairs, pose, kernel);
+    let eig = h.symmetric_eigen().eigenvalues;
+    let (lo, hi) = (eig.min(), eig.max());
+    if hi.is_nan() || hi <= 0.0 || lo / hi < 1e-10 {
+        return Err(LidarError::Degenerate);
+    }
+    h.cholesky()
+        .map(|c| -c.solve(&g))
+        .ok_or(LidarError::Degenerate)
+}
+
+/// One Levenberg–Marquardt step: tries growing damping until the robust cost drops; returns a
+/// zero step when no damping helps (the pose is at a minimum for these pairs).
+fn lm_step(pairs: &[Pair], pose: &Pose2, kernel: Kernel, lambda: &mut f64) -> Vector3<f64> {
+    let (h, g) = normal_equations(pairs, pose, kernel);
+    let current = cost(pairs, pose, kernel);
+    let diag = Matrix3::from_diagonal(&h.diagonal().map(|d| d.max(1e-9)));
+    for _ in 0..10 {
+        let damped = h + *lambda * diag;
+        if let Some(chol) = damped.cholesky() {
+            let step = -chol.solve(&g);
+            if cost(pairs, &(exp_step(&step) * pose), kernel) <= current {
+                *lambda = (*lambda * 0.1).max(1e-9);
+                return step;
+            }
+        }
+        *lambda *= 10.0;
+    }
+    Vector3::zeros()
+}
+
+/// The rigid motion of a small step `(δx, δy, δθ)`.
+fn exp_step(step: &Vector3<f64>) -> Pose2 {
+    Pose2::new(step.xy(), step.z)
+}
+
+/// Robust cost `ρ(r)` of a residual of size `r` >= 0.
+fn rho(kernel: RobustKernel, k: f64, r: f64) -> f64 {
+    match kernel {
+        RobustKernel::None => 0.5 * r * r,
+        RobustKernel::Huber if r <= k => 0.5 * r * r,
+        RobustKernel::Huber => k * (r - 0.5 * k),
+        RobustKernel::Cauchy => 0.5 * k * k * (1.0 + (r / k).powi(2)).ln(),
+        RobustKernel::Tukey if r < k => k * k / 6.0 * (1.0 - (1.0 - (r / k).powi(2)).powi(3)),
+        RobustKernel::Tukey => k * k / 6.0,
+    }
+}
+
+/// IRLS weight `ρ'(r)/r` of a residual of size `r` >= 0.
+fn weight(kernel: RobustKernel, k: f64, r: f64) -> f64 {
+    match kernel {
+        RobustKernel::None => 1.0,
+        RobustKernel::Huber if r <= k => 1.0,
+        RobustKernel::Huber => k / r,
+        RobustKernel::Cauchy => 1.0 / (1.0 + (r / k).powi(2)),
+        RobustKernel::Tukey if r < k => (1.0 - (r / k).powi(2)).powi(2),
+        RobustKernel::Tukey => 0.0,
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,419 @@
+//! Incremental ICP-SLAM, as MRPT's `icp-slam` application (`CMetricMapBuilderICP`): every scan
+//! is aligned by ICP to a point map of earlier keyframes, starting from the odometry increment
+//! (or, without odometry, from the last motion: a constant-velocity model), and becomes a new
+//! keyframe once the robot has moved or turned far enough since the last one.
+//!
+//! Alignments whose goodness (fraction of scan points matched within the final ICP threshold)
+//! is below `min_goodness` are retried from a correlative search over a window around the guess
+//! (Olson 2009), so a bad odometry reading or a long gap does not derail the map. A scan that
+//! still does not match keeps its predicted pose and is counted as a failed match. There is no
+//! loop closure: this is the local front end that graph SLAM would build on.
+
+use crate::cloud::{estimate_normals, scan_points, voxel_downsample};
+use crate::correlative::{correlative_match, CorrelativeConfig};
+use crate::icp::{align, IcpConfig, IcpResult};
+use crate::point_map::{Keyframe, KeyframeMap};
+use crate::LidarError;
+use nalgebra::Point2;
+use serde::{Deserialize, Serialize};
+use slamkit_core::pose::pose2_to_pose3;
+use slamkit_core::{LaserScan, Pose2, StageTimings, Trajectory};
+use std::time::Instant;
+
+/// ICP-SLAM parameters; defaults tuned on the Freiburg benchmark logs (see the crate tests).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct IcpSlamConfig {
+    /// Scan-to-map ICP.
+    pub icp: IcpConfig,
+    /// Correlative search used when ICP's goodness is too low.
+    pub correlative: CorrelativeConfig,
+    /// Use the correlative search as a fallback.
+    pub correlative_fallback: bool,
+    /// Beams shorter than this are dropped [m].
+    pub min_range_m: f64,
+    /// Beams at or beyond this are dropped (long ranges are noisy and sparse) [m].
+    pub max_range_m: f64,
+    /// Voxel size for thinning the scan before matching [m]; 0 keeps every point.
+    pub scan_voxel_m: f64,
+    /// Voxel size of the point map [m].
+    pub map_voxel_m: f64,
+    /// Keyframes in the map: the most recent N; 0 keeps every keyframe (a global map).
+    pub map_keyframes: usize,
+    /// Insert a keyframe after moving this far since the last one [m] (MRPT
+    /// `insertionLinDistance`).
+    pub insertion_linear_m: f64,
+    /// Insert a keyframe after turning this much since the last one [rad] (MRPT
+    /// `insertionAngDistance`).
+    pub insertion_angular_rad: f64,
+    /// Alignments below this goodness are not accepted (MRPT `minICPgoodnessToAccept`), in [0, 1].
+    pub min_goodness: f64,
+    /// Scans with fewer usable points are skipped.
+    pub min_scan_points: usize,
+    /// Neighbours used to estimate each point's normal.
+    pub normal_neighbours: usize,
+    /// Neighbours farther than this do not count for normals [m].
+    pub normal_radius_m: f64,
+    /// Largest ratio of the small to the large eigenvalue for a neighbourhood to have a normal.
+    pub normal_max_flatness: f64,
+    /// After this many scans in a row fail to match, the next scan is inserted anyway, so the
+    /// map follows the robot into new ground.
+    pub max_failures_before_insert: usize,
+}
+
+impl Default for IcpSlamConfig {
+    fn default() -> Self {
+        Self {
+            icp: IcpConfig::default(),
+            correlative: CorrelativeConfig::default(),
+            correlative_fallback: true,
+            min_range_m: 0.1,
+            max_range_m: 30.0,
+            scan_voxel_m: 0.0,
+            map_voxel_m: 0.05,
+            map_keyframes: 20,
+            insertion_linear_m: 0.3,
+            insertion_angular_rad: 10f64.to_radians(),
+            min_goodness: 0.7,
+            min_scan_points: 20,
+            normal_neighbours: 6,
+            normal_radius_m: 0.5,
+            normal_max_flatness: 0.2,
+            max_failures_before_insert: 3,
+        }
+    }
+}
+
+impl IcpSlamConfig {
+    /// Checks every field's range.
+    pub fn validate(&self) -> Result<(), LidarError> {
+        self.icp.validate()?;
+        let checks = [
+            ("min_range_m", self.min_range_m, self.min_range_m >= 0.0),
+            (
+                "max_range_m",
+                self.max_range_m,
+                self.max_range_m > self.min_range_m,
+            ),
+            ("scan_voxel_m", self.scan_voxel_m, self.scan_voxel_m >= 0.0),
+            ("map_voxel_m", self.map_voxel_m, self.map_voxel_m > 0.0),
+            (
+                "insertion_linear_m",
+                self.insertion_linear_m,
+                self.insertion_linear_m >= 0.0,
+            ),
+            (
+                "insertion_angular_rad",
+                self.insertion_angular_rad,
+                self.insertion_angular_rad >= 0.0,
+            ),
+            (
+                "min_goodness",
+                self.min_goodness,
+                (0.0..=1.0).contains(&self.min_goodness),
+            ),
+            (
+                "normal_radius_m",
+                self.normal_radius_m,
+                self.normal_radius_m > 0.0,
+            ),
+            (
+                "normal_max_flatness",
+                self.normal_max_flatness,
+                self.normal_max_flatness > 0.0,
+            ),
+        ];
+        for (field, value, ok) in checks {
+            if !(ok && value.is_finite()) {
+                return Err(LidarError::InvalidConfig {
+                    field,
+                    value: value.to_string(),
+                    reason: "out of range",
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+/// What happened to one scan.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ScanStatus {
+    /// The first usable scan: it anchors the world frame.
+    Initialised,
+    /// Aligned by ICP from the predicted pose.
+    Matched,
+    /// Aligned by ICP after a correlative search.
+    MatchedCorrelative,
+    /// No alignment reached the minimum goodness; the predicted pose was kept.
+    MatchFailed,
+    /// Too few usable points (empty, NaN, negative or no-return ranges); predicted pose kept.
+    Skipped,
+}
+
+/// The estimate for one scan.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ScanEstimate {
+    /// Estimated pose of the robot base.
+    pub world_from_base: Pose2,
+    /// How it was obtained.
+    pub status: ScanStatus,
+    /// Goodness of the accepted (or best failed) alignment, when one ran.
+    pub goodness: Option<f64>,
+    /// True when the scan became a keyframe.
+    pub inserted: bool,
+}
+
+/// Counters over a run.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct IcpSlamStats {
+    /// Scans given to the mapper.
+    pub scans_read: usize,
+    /// Scans with enough usable points.
+    pub scans_processed: usize,
+    /// Scans skipped for too few usable points.
+    pub scans_skipped: usize,
+    /// Processed scans whose alignment failed.
+    pub matches_failed: usize,
+    /// Scans aligned only thanks to the correlative search.
+    pub correlative_recoveries: usize,
+    /// Keyframes inserted into the map.
+    pub keyframes: usize,
+}
+
+/// The incremental ICP mapper. Feed it scans in file order with [`IcpSlam::process`].
+pub struct IcpSlam {
+    config: IcpSlamConfig,
+    map: KeyframeMap,
+    world_from_base: Pose2,
+    last_motion: Pose2,
+    last_odometry: Option<Pose2>,
+    last_keyframe: Option<Pose2>,
+    consecutive_failures: usize,
+    stats: IcpSlamStats,
+    timings: StageTimings,
+}
+
+impl IcpSlam {
+    /// A mapper with an empty map, the world frame to be anchored at the first usable scan.
+    pub fn new(config: IcpSlamConfig) -> Result<Self, LidarError> {
+        config.validate()?;
+        Ok(Self {
+            map: KeyframeMap::new(config.map_voxel_m, config.map_keyframes),
+            config,
+            world_from_base: Pose2::identity(),
+            last_motion: Pose2::identity(),
+            last_odometry: None,
+            last_keyframe: None,
+            consecutive_failures: 0,
+            stats: IcpSlamStats::default(),
+            timings: StageTimings::default(),
+        })
+    }
+
+    /// Estimates the pose of `scan` and updates the map. Never fails: a scan that cannot be used
+    /// keeps its predicted pose and is counted.
+    pub fn process(&mut self, scan: &LaserScan) -> ScanEstimate {
+        self.stats.scans_read += 1;
+        let guess = self.predict(scan);
+        let start = Instant::now();
+        let points = scan_points(scan, self.config.min_range_m, self.config.max_range_m);
+        self.timings.record("preprocess", elapsed_ms(start));
+        if points.len() < self.config.min_scan_points {
+            self.stats.scans_skipped += 1;
+            return self.commit(guess, ScanStatus::Skipped, None, false);
+        }
+        self.stats.scans_processed += 1;
+        if self.map.is_empty() {
+            self.insert(&points, &guess);
+            return self.commit(guess, ScanStatus::Initialised, None, true);
+        }
+        let (pose, status, goodness) = self.localise(&points, &guess);
+        let moved = self.last_keyframe.map_or(true, |kf| {
+            let d = kf.inverse() * pose;
+            d.translation.vector.norm() >= self.config.insertion_linear_m
+                || d.rotation.angle().abs() >= self.config.insertion_angular_rad
+        });
+        let stale = self.consecutive_failures >= self.config.max_failures_before_insert.max(1);
+        let insert = moved && (status != ScanStatus::MatchFailed || stale);
+        if insert {
+            self.insert(&points, &pose);
+        }
+        self.commit(pose, status, goodness, insert)
+    }
+
+    /// The pose predicted for `scan`: the odometry increment since the previous scan when both
+    /// have odometry, the last motion otherwise.
+    fn predict(&mut self, scan: &LaserScan) -> Pose2 {
+        let motion = match (self.last_odometry, scan.odometry) {
+            (Some(prev), Some(cur)) => prev.inverse() * cur,
+            _ => self.last_motion,
+        };
+        if scan.odometry.is_some() {
+            self.last_odometry = scan.odometry;
+        }
+        if self.map.is_empty() {
+            return self.world_from_base;
+        }
+        self.world_from_base * motion
+    }
+
+    /// Aligns `points` to the map from `guess`, falling back to the correlative search.
+    fn localise(
+        &mut self,
+        points: &[Point2<f64>],
+        guess: &Pose2,
+    ) -> (Pose2, ScanStatus, Option<f64>) {
+        let source = voxel_downsample(points, self.config.scan_voxel_m);
+        let start = Instant::now();
+        let first = align(&source, self.map.index(), guess, &self.config.icp);
+        let first = first.ok();
+        self.timings.record("icp", elapsed_ms(start));
+        if let Some(res) = first.filter(|r| r.goodness >= self.config.min_goodness) {
+            self.consecutive_failures = 0;
+            return (
+                res.target_from_source,
+                ScanStatus::Matched,
+                Some(res.goodness),
+            );
+        }
+        let second = if self.config.correlative_fallback {
+            let start = Instant::now();
+            let res = self.correlative_then_icp(&source, guess);
+            self.timings.record("correlative", elapsed_ms(start));
+            res
+        } else {
+            None
+        };
+        if let Some(res) = second.filter(|r| r.goodness >= self.config.min_goodness) {
+            self.consecutive_failures = 0;
+            self.stats.correlative_recoveries += 1;
+            return (
+                res.target_from_source,
+                ScanStatus::MatchedCorrelative,
+                Some(res.goodness),
+            );
+        }
+        self.consecutive_failures += 1;
+        self.stats.matches_failed += 1;
+        let best = [first, second]
+            .into_iter()
+            .flatten()
+            .map(|r| r.goodness)
+            .reduce(f64::max);
+        (*guess, ScanStatus::MatchFailed, best)
+    }
+
+    fn correlative_then_icp(&self, source: &[Point2<f64>], guess: &Pose2) -> Option<IcpResult> {
+        let coarse =
+            correlative_match(source, self.map.points(), guess, &self.config.correlative).ok()?;
+        align(
+            source,
+            self.map.index(),
+            &coarse.target_from_source,
+            &self.config.icp,
+        )
+        .ok()
+    }
+
+    fn insert(&mut self, points: &[Point2<f64>], pose: &Pose2) {
+        let start = Instant::now();
+        let c = &self.config;
+        let normals = estimate_normals(
+            points,
+            c.normal_neighbours,
+            c.normal_radius_m,
+            c.normal_max_flatness,
+        );
+        self.map.insert(Keyframe {
+            world_from_base: *pose,
+            points: points.to_vec(),
+            normals,
+        });
+        self.last_keyframe = Some(*pose);
+        self.consecutive_failures = 0;
+        self.stats.keyframes += 1;
+        self.timings.record("insert", elapsed_ms(start));
+    }
+
+    fn commit(
+        &mut self,
+        pose: Pose2,
+        status: ScanStatus,
+        goodness: Option<f64>,
+        inserted: bool,
+    ) -> ScanEstimate {
+        if status != ScanStatus::Initialised {
+            self.last_motion = self.world_from_base.inverse() * pose;
+        }
+        self.world_from_base = pose;
+        ScanEstimate {
+            world_from_base: pose,
+            status,
+            goodness,
+            inserted,
+        }
+    }
+
+    /// The point map built so far.
+    pub fn map(&self) -> &KeyframeMap {
+        &self.map
+    }
+
+    /// Counters so far.
+    pub fn stats(&self) -> &IcpSlamStats {
+        &self.stats
+    }
+
+    /// Per-stage timings so far.
+    pub fn timings(&self) -> &StageTimings {
+        &self.timings
+    }
+}
+
+fn elapsed_ms(start: Instant) -> f64 {
+    start.elapsed().as_secs_f64() * 1e3
+}
+
+/// Everything a full run produces.
+#[derive(Debug, Clone)]
+pub struct IcpSlamOutput {
+    /// One pose per scan, in file order, with the scans' own timestamps.
+    pub trajectory: Trajectory,
+    /// The per-scan estimates (planar pose, status, goodness).
+    pub estimates: Vec<ScanEstimate>,
+    /// The final point map, world frame.
+    pub map_points: Vec<Point2<f64>>,
+    /// Counters.
+    pub stats: IcpSlamStats,
+    /// Per-stage timings.
+    pub timings: StageTimings,
+}
+
+/// Runs ICP-SLAM over `scans` in order, calling `on_scan` after each (e.g. for progress).
+pub fn run_icp_slam(
+    scans: &[LaserScan],
+    config: &IcpSlamConfig,
+    mut on_scan: impl FnMut(usize),
+) -> Result<IcpSlamOutput, LidarError> {
+    let mut slam = IcpSlam::new(config.clone())?;
+    let mut trajectory = Trajectory::new();
+    let mut estimates = Vec::with_capacity(scans.len());
+    for (i, scan) in scans.iter().enumerate() {
+        let est = slam.process(scan);
+        trajectory.push(scan.timestamp, pose2_to_pose3(&est.world_from_base));
+        estimates.push(est);
+        on_scan(i);
+    }
+    Ok(IcpSlamOutput {
+        trajectory,
+        estimates,
+        map_points: slam.map.points().to_vec(),
+        stats: slam.stats,
+        timings: slam.timings,
+    })
+}
+
+#[cfg(test)]
+mod tests;

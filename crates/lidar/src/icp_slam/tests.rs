@@ -1,0 +1,149 @@
+use super::*;
+use crate::sim_scan::SegmentWorld;
+use nalgebra::Vector2;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use std::f64::consts::PI;
+
+/// A loop through the room: true poses, and scans with 1 cm range noise and odometry drifting
+/// by 3 % in distance and 2° per metre in heading when `with_odometry`.
+fn drive(with_odometry: bool) -> (Vec<Pose2>, Vec<LaserScan>) {
+    let world = SegmentWorld::room();
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let mut truth = Vec::new();
+    let mut scans = Vec::new();
+    let mut odom = Pose2::identity();
+    let steps = 240;
+    for k in 0..steps {
+        let s = k as f64 / steps as f64 * 2.0 * PI;
+        let pose = Pose2::new(
+            Vector2::new(-4.0 * s.cos() + 0.5, 2.3 * s.sin()),
+            s + PI / 2.0 + 0.2 * s.sin(),
+        );
+        if let Some(prev) = truth.last() {
+            let step: Pose2 = Pose2::inverse(prev) * pose;
+            let noisy = Pose2::new(
+                step.translation.vector * 1.03,
+                step.rotation.angle() + 2f64.to_radians() * step.translation.vector.norm(),
+            );
+            odom *= noisy;
+        }
+        let mut scan = world.scan(&pose, 361, PI, 30.0);
+        for r in &mut scan.ranges_m {
+            *r += rng.gen_range(-0.01..0.01);
+        }
+        scan.timestamp = 100.0 + k as f64 * 0.1;
+        scan.odometry = with_odometry.then_some(odom);
+        truth.push(pose);
+        scans.push(scan);
+    }
+    (truth, scans)
+}
+
+/// Largest error of the estimated motion between consecutive scans, against the truth.
+fn max_relative_error(truth: &[Pose2], est: &[ScanEstimate]) -> (f64, f64) {
+    truth
+        .windows(2)
+        .zip(est.windows(2))
+        .map(|(t, e)| {
+            let err = (t[0].inverse() * t[1]).inverse()
+                * (e[0].world_from_base.inverse() * e[1].world_from_base);
+            (err.translation.vector.norm(), err.rotation.angle().abs())
+        })
+        .fold((0.0, 0.0), |(a, b), (c, d)| {
+            (f64::max(a, c), f64::max(b, d))
+        })
+}
+
+fn final_drift(truth: &[Pose2], est: &[ScanEstimate]) -> f64 {
+    let t = truth[0].inverse() * truth[truth.len() - 1];
+    let e = est[0].world_from_base.inverse() * est[est.len() - 1].world_from_base;
+    (t.inverse() * e).translation.vector.norm()
+}
+
+#[test]
+fn tracks_a_loop_with_drifting_odometry() {
+    let (truth, scans) = drive(true);
+    let out = run_icp_slam(&scans, &IcpSlamConfig::default(), |_| {}).unwrap();
+    assert_eq!(out.trajectory.len(), scans.len());
+    for (p, s) in out.trajectory.poses.iter().zip(&scans) {
+        assert_eq!(p.timestamp, s.timestamp);
+    }
+    assert_eq!(out.stats.scans_processed, scans.len());
+    assert_eq!(out.stats.matches_failed, 0);
+    let (dt, dr) = max_relative_error(&truth, &out.estimates);
+    assert!(
+        dt < 0.01 && dr < 0.3f64.to_radians(),
+        "relative error {dt} m {dr} rad"
+    );
+    assert!(final_drift(&truth, &out.estimates) < 0.05);
+    assert!(out.stats.keyframes > 10 && !out.map_points.is_empty());
+}
+
+#[test]
+fn tracks_without_odometry_from_constant_velocity() {
+    let (truth, scans) = drive(false);
+    let out = run_icp_slam(&scans, &IcpSlamConfig::default(), |_| {}).unwrap();
+    let (dt, dr) = max_relative_error(&truth, &out.estimates);
+    assert!(
+        dt < 0.01 && dr < 0.3f64.to_radians(),
+        "relative error {dt} m {dr} rad"
+    );
+}
+
+#[test]
+fn broken_scans_are_skipped_and_counted_but_keep_a_pose() {
+    let (truth, mut scans) = drive(true);
+    scans[10].ranges_m.iter_mut().for_each(|r| *r = f64::NAN);
+    scans[20].ranges_m.iter_mut().for_each(|r| *r = -1.0);
+    scans[30].ranges_m.iter_mut().for_each(|r| *r = 30.0);
+    scans[40].ranges_m.clear();
+    scans[0].ranges_m.iter_mut().for_each(|r| *r = f64::NAN);
+    let out = run_icp_slam(&scans, &IcpSlamConfig::default(), |_| {}).unwrap();
+    assert_eq!(out.trajectory.len(), scans.len());
+    assert_eq!(out.stats.scans_skipped, 5);
+    assert_eq!(out.stats.scans_processed, scans.len() - 5);
+    assert_eq!(out.estimates[10].status, ScanStatus::Skipped);
+    assert_eq!(out.estimates[1].status, ScanStatus::Initialised);
+    let (dt, _) = max_relative_error(&truth[1..], &out.estimates[1..]);
+    assert!(dt < 0.1, "{dt}");
+}
+
+#[test]
+fn a_wrong_odometry_jump_is_recovered_by_the_correlative_search() {
+    let (truth, mut scans) = drive(true);
+    let kick = Pose2::new(Vector2::new(0.4, -0.25), 17f64.to_radians());
+    for s in scans.iter_mut().skip(100) {
+        s.odometry = s.odometry.map(|o| o * kick);
+    }
+    let with = run_icp_slam(&scans, &IcpSlamConfig::default(), |_| {}).unwrap();
+    let (dt, _) = max_relative_error(&truth, &with.estimates);
+    assert!(dt < 0.01, "with fallback {dt}");
+    assert!(with.stats.correlative_recoveries >= 1);
+    let config = IcpSlamConfig {
+        correlative_fallback: false,
+        ..IcpSlamConfig::default()
+    };
+    let without = run_icp_slam(&scans, &config, |_| {}).unwrap();
+    let (dt, _) = max_relative_error(&truth, &without.estimates);
+    assert!(dt > 0.1, "without fallback {dt}");
+}
+
+#[test]
+fn invalid_config_is_rejected() {
+    let config = IcpSlamConfig {
+        min_goodness: 1.5,
+        ..IcpSlamConfig::default()
+    };
+    assert!(matches!(
+        IcpSlam::new(config),
+        Err(LidarError::InvalidConfig {
+            field: "min_goodness",
+            ..
+        })
+    ));
+    let parsed: IcpSlamConfig =
+        toml::from_str("map_keyframes = 0\n[icp]\nkernel = \"tukey\"\n").unwrap();
+    assert_eq!(parsed.map_keyframes, 0);
+    assert_eq!(parsed.icp.kernel, crate::icp::RobustKernel::Tukey);
+}

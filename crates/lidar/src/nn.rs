@@ -1,0 +1,170 @@
+//! Nearest-neighbour search over 2D points: a thin wrapper over kiddo's immutable k-d tree that
+//! keeps the points (and optional surface normals) beside the tree, so matchers get geometry
+//! back rather than bare indices.
+
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
+use nalgebra::{Point2, Vector2};
+use std::collections::HashSet;
+
+/// Points with optional unit normals, indexed for nearest-neighbour queries.
+pub struct PointIndex {
+    points: Vec<Point2<f64>>,
+    normals: Vec<Option<Vector2<f64>>>,
+    tree: Option<ImmutableKdTree<f64, 2>>,
+    /// Index into `points` of each tree item.
+    tree_items: Vec<usize>,
+}
+
+/// One neighbour found by a query.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Neighbour {
+    /// Index of the point in the index.
+    pub index: usize,
+    /// Euclidean distance to the query [m].
+    pub distance_m: f64,
+}
+
+impl PointIndex {
+    /// Indexes `points`; `normals`, when given, must have one entry per point (`None` where the
+    /// local surface has no clear direction). A length mismatch drops the normals.
+    pub fn new(points: Vec<Point2<f64>>, normals: Option<Vec<Option<Vector2<f64>>>>) -> Self {
+        let normals = match normals {
+            Some(n) if n.len() == points.len() => n,
+            _ => vec![None; points.len()],
+        };
+        // kiddo's immutable tree misbuilds on exact duplicates, and NaN has no place in it:
+        // index each distinct finite position once.
+        let mut seen = HashSet::with_capacity(points.len());
+        let (tree_items, coords): (Vec<usize>, Vec<[f64; 2]>) = points
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| {
+                p.x.is_finite() && p.y.is_finite() && seen.insert((p.x.to_bits(), p.y.to_bits()))
+            })
+            .map(|(i, p)| (i, [p.x, p.y]))
+            .unzip();
+        let tree = (!coords.is_empty()).then(|| ImmutableKdTree::new_from_slice(&coords));
+        Self {
+            points,
+            normals,
+            tree,
+            tree_items,
+        }
+    }
+
+    /// Number of indexed points.
+    pub fn len(&self) -> usize {
+        self.points.len()
+    }
+
+    /// True when nothing is indexed.
+    pub fn is_empty(&self) -> bool {
+        self.points.is_empty()
+    }
+
+    /// The indexed points.
+    pub fn points(&self) -> &[Point2<f64>] {
+        &self.points
+    }
+
+    /// Point `i`.
+    pub fn point(&self, i: usize) -> Option<&Point2<f64>> {
+        self.points.get(i)
+    }
+
+    /// Unit normal of point `i`, when it has one.
+    pub fn normal(&self, i: usize) -> Option<Vector2<f64>> {
+        self.normals.get(i).copied().flatten()
+    }
+
+    /// The nearest indexed point to `query`, or `None` when the index is empty.
+    pub fn nearest(&self, query: &Point2<f64>) -> Option<Neighbour> {
+        let tree = self.tree.as_ref()?;
+        let nn = tree.nearest_one::<SquaredEuclidean>(&[query.x, query.y]);
+        Some(Neighbour {
+            index: self.item_index(nn.item)?,
+            distance_m: nn.distance.sqrt(),
+        })
+    }
+
+    fn item_index(&self, item: u64) -> Option<usize> {
+        self.tree_items.get(usize::try_from(item).ok()?).copied()
+    }
+
+    /// Up to `k` nearest indexed points to `query`, closest first.
+    pub fn nearest_k(&self, query: &Point2<f64>, k: usize) -> Vec<Neighbour> {
+        let Some(tree) = self.tree.as_ref() else {
+            return Vec::new();
+        };
+        tree.nearest_n::<SquaredEuclidean>(&[query.x, query.y], k)
+            .into_iter()
+            .filter_map(|nn| {
+                Some(Neighbour {
+                    index: self.item_index(nn.item)?,
+                    distance_m: nn.distance.sqrt(),
+                })
+            })
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    #[test]
+    fn nearest_matches_brute_force() {
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        let pts: Vec<Point2<f64>> = (0..500)
+            .map(|_| Point2::new(rng.gen_range(-10.0..10.0), rng.gen_range(-10.0..10.0)))
+            .collect();
+        let index = PointIndex::new(pts.clone(), None);
+        for _ in 0..200 {
+            let q = Point2::new(rng.gen_range(-12.0..12.0), rng.gen_range(-12.0..12.0));
+            let brute = pts
+                .iter()
+                .map(|p| (p - q).norm())
+                .fold(f64::INFINITY, f64::min);
+            let nn = index.nearest(&q).unwrap();
+            assert!((nn.distance_m - brute).abs() < 1e-9);
+            let k = index.nearest_k(&q, 3);
+            assert_eq!(k.len(), 3);
+            assert!((k[0].distance_m - brute).abs() < 1e-9);
+            assert!(k[0].distance_m <= k[1].distance_m && k[1].distance_m <= k[2].distance_m);
+        }
+    }
+
+    #[test]
+    fn lattice_with_shared_coordinates_matches_brute_force() {
+        let mut pts = Vec::new();
+        for i in 0..60 {
+            for j in 0..3 {
+                pts.push(Point2::new(i as f64 * 0.05, j as f64));
+                pts.push(Point2::new(j as f64, i as f64 * 0.05));
+            }
+        }
+        let index = PointIndex::new(pts.clone(), None);
+        let mut rng = ChaCha8Rng::seed_from_u64(8);
+        for _ in 0..300 {
+            let q = Point2::new(rng.gen_range(-1.0..4.0), rng.gen_range(-1.0..4.0));
+            let brute = pts
+                .iter()
+                .map(|p| (p - q).norm())
+                .fold(f64::INFINITY, f64::min);
+            assert!((index.nearest(&q).unwrap().distance_m - brute).abs() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn empty_index_and_duplicates() {
+        let empty = PointIndex::new(Vec::new(), None);
+        assert!(empty.nearest(&Point2::origin()).is_none());
+        assert!(empty.nearest_k(&Point2::origin(), 4).is_empty());
+        let mut pts = vec![Point2::new(1.0, 1.0); 100];
+        pts.push(Point2::new(f64::NAN, 0.0));
+        let dup = PointIndex::new(pts, None);
+        assert!((dup.nearest(&Point2::new(1.0, 2.0)).unwrap().distance_m - 1.0).abs() < 1e-12);
+    }
+}

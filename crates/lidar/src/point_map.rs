@@ -1,0 +1,151 @@
+//! The map ICP-SLAM matches against: the points of keyframe scans in the world frame, thinned
+//! to one point per voxel and indexed in a k-d tree, each with the surface normal estimated in
+//! its own scan.
+//!
+//! Two modes, as in the literature: a sliding window of the most recent keyframes (a local
+//! submap, like KISS-ICP's local map or Cartographer's submaps, which keeps drift from an old
+//! pass out of the current match), or every keyframe ever inserted (MRPT icp-slam's global point
+//! map, which re-anchors the robot on its old map when it comes back with little drift).
+
+use crate::cloud::voxel_key;
+use crate::nn::PointIndex;
+use nalgebra::{Point2, Vector2};
+use slamkit_core::Pose2;
+use std::collections::{HashMap, VecDeque};
+
+/// A scan inserted into the map.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Keyframe {
+    /// Pose of the robot base when the scan was taken.
+    pub world_from_base: Pose2,
+    /// Scan points in the base frame.
+    pub points: Vec<Point2<f64>>,
+    /// Unit normal of each point in the base frame, where the scan shows a clear surface.
+    pub normals: Vec<Option<Vector2<f64>>>,
+}
+
+/// Keyframe points in the world frame, voxel-thinned and indexed.
+pub struct KeyframeMap {
+    voxel_m: f64,
+    max_keyframes: usize,
+    window: VecDeque<Keyframe>,
+    voxels: HashMap<(i64, i64), usize>,
+    points: Vec<Point2<f64>>,
+    normals: Vec<Option<Vector2<f64>>>,
+    index: PointIndex,
+    keyframes_inserted: usize,
+}
+
+impl KeyframeMap {
+    /// An empty map with voxels of side `voxel_m` holding the last `max_keyframes` keyframes
+    /// (0: all of them).
+    pub fn new(voxel_m: f64, max_keyframes: usize) -> Self {
+        Self {
+            voxel_m,
+            max_keyframes,
+            window: VecDeque::new(),
+            voxels: HashMap::new(),
+            points: Vec::new(),
+            normals: Vec::new(),
+            index: PointIndex::new(Vec::new(), None),
+            keyframes_inserted: 0,
+        }
+    }
+
+    /// Adds a keyframe and re-indexes the map.
+    pub fn insert(&mut self, keyframe: Keyframe) {
+        self.keyframes_inserted += 1;
+        if self.max_keyframes == 0 {
+            self.add_points(&keyframe);
+        } else {
+            self.window.push_back(keyframe);
+            while self.window.len() > self.max_keyframes {
+                self.window.pop_front();
+            }
+            self.voxels.clear();
+            self.points.clear();
+            self.normals.clear();
+            // Newest first: where keyframes overlap, the most recent view of a wall wins.
+            let window = std::mem::take(&mut self.window);
+            for kf in window.iter().rev() {
+                self.add_points(kf);
+            }
+            self.window = window;
+        }
+        self.index = PointIndex::new(self.points.clone(), Some(self.normals.clone()));
+    }
+
+    /// Adds the keyframe's points whose voxel is still empty.
+    fn add_points(&mut self, kf: &Keyframe) {
+        for (p, n) in kf.points.iter().zip(&kf.normals) {
+            let world = kf.world_from_base * p;
+            let key = voxel_key(&world, self.voxel_m);
+            if self.voxels.contains_key(&key) {
+                continue;
+            }
+            self.voxels.insert(key, self.points.len());
+            self.points.push(world);
+            self.normals
+                .push(n.map(|n| kf.world_from_base.rotation * n));
+        }
+    }
+
+    /// The indexed map points (world frame) with their normals.
+    pub fn index(&self) -> &PointIndex {
+        &self.index
+    }
+
+    /// The map points in the world frame.
+    pub fn points(&self) -> &[Point2<f64>] {
+        &self.points
+    }
+
+    /// Number of keyframes inserted since the start (including those out of the window).
+    pub fn keyframes_inserted(&self) -> usize {
+        self.keyframes_inserted
+    }
+
+    /// True before the first keyframe.
+    pub fn is_empty(&self) -> bool {
+        self.points.is_empty()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn kf(x: f64, pts: &[(f64, f64)]) -> Keyframe {
+        Keyframe {
+            world_from_base: Pose2::new(Vector2::new(x, 0.0), std::f64::consts::FRAC_PI_2),
+            points: pts.iter().map(|&(a, b)| Point2::new(a, b)).collect(),
+            normals: vec![Some(Vector2::new(1.0, 0.0)); pts.len()],
+        }
+    }
+
+    #[test]
+    fn window_keeps_recent_keyframes_in_world_frame() {
+        let mut map = KeyframeMap::new(0.05, 2);
+        map.insert(kf(0.0, &[(1.0, 0.0)]));
+        assert!((map.points()[0] - Point2::new(0.0, 1.0)).norm() < 1e-12);
+        let n = map.index().normal(0).unwrap();
+        assert!((n - Vector2::new(0.0, 1.0)).norm() < 1e-12);
+        map.insert(kf(10.0, &[(1.0, 0.0)]));
+        map.insert(kf(20.0, &[(1.0, 0.0), (1.01, 0.0)]));
+        assert_eq!(map.keyframes_inserted(), 3);
+        // keyframe 0 fell out of the window; the two points of the last share a voxel
+        assert_eq!(map.points().len(), 2);
+        assert!((map.points()[0] - Point2::new(20.0, 1.0)).norm() < 1e-12);
+    }
+
+    #[test]
+    fn global_map_keeps_everything() {
+        let mut map = KeyframeMap::new(0.05, 0);
+        assert!(map.is_empty());
+        for i in 0..5 {
+            map.insert(kf(i as f64, &[(1.0, 0.0)]));
+        }
+        assert_eq!(map.points().len(), 5);
+        assert_eq!(map.index().len(), 5);
+    }
+}
