@@ -344,9 +344,12 @@ impl IcpSlam {
         goodness: Option<f64>,
         inserted: bool,
     ) -> ScanEstimate {
-        if status != ScanStatus::Initialised {
-            self.last_motion = self.world_from_base.inverse() * pose;
-        }
+        // After a failed match the motion is unknown: assume standing still rather than
+        // extrapolating a guess that did not fit.
+        self.last_motion = match status {
+            ScanStatus::Initialised | ScanStatus::MatchFailed => Pose2::identity(),
+            _ => self.world_from_base.inverse() * pose,
+        };
         self.world_from_base = pose;
         ScanEstimate {
             world_from_base: pose,

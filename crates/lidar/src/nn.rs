@@ -77,8 +77,12 @@ impl PointIndex {
         self.normals.get(i).copied().flatten()
     }
 
-    /// The nearest indexed point to `query`, or `None` when the index is empty.
+    /// The nearest indexed point to `query`, or `None` when the index is empty or the query is
+    /// not finite.
     pub fn nearest(&self, query: &Point2<f64>) -> Option<Neighbour> {
+        if !(query.x.is_finite() && query.y.is_finite()) {
+            return None;
+        }
         let tree = self.tree.as_ref()?;
         let nn = tree.nearest_one::<SquaredEuclidean>(&[query.x, query.y]);
         Some(Neighbour {
@@ -93,7 +97,11 @@ impl PointIndex {
 
     /// Up to `k` nearest indexed points to `query`, closest first.
     pub fn nearest_k(&self, query: &Point2<f64>, k: usize) -> Vec<Neighbour> {
-        let Some(tree) = self.tree.as_ref() else {
+        let Some(tree) = self
+            .tree
+            .as_ref()
+            .filter(|_| query.x.is_finite() && query.y.is_finite())
+        else {
             return Vec::new();
         };
         tree.nearest_n::<SquaredEuclidean>(&[query.x, query.y], k)
