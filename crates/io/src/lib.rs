@@ -9,12 +9,15 @@
 //!   calibrated cameras and `world_from_camera` ground truth: [`tum_rgbd`], [`kitti`],
 //!   [`seven_scenes`], [`redwood`], [`euroc`]; [`Dataset`] opens any of them by name.
 
+pub mod carmen;
 pub mod dataset;
 pub mod error;
 pub mod euroc;
 pub mod image_io;
 pub mod kitti;
+pub mod mrpt_text;
 pub mod redwood;
+pub mod relations;
 pub mod seven_scenes;
 pub mod trajectory_file;
 pub mod tum_rgbd;
