@@ -3,6 +3,8 @@
 //! * evo 1.38 on its own test data (github.com/MichaelGrupp/evo, `test/data`):
 //!   `evo_ape tum freiburg1_xyz-groundtruth.txt freiburg1_xyz-rgbdslam.txt -a --t_max_diff 0.02`
 //!   gives RMSE 0.013473 m over 786 pairs, `evo_rpe ... --delta 1 --delta_unit f` 0.005759 m.
+//! * The relations metric of MRPT's runs on the Intel and ACES benchmark logs, from
+//!   `trajectories/mrpt/README.md` (an independent implementation of Kümmerle et al. 2009).
 //!
 //! Skipped when `SLAMKIT_DATA` is not set.
 
@@ -97,6 +99,45 @@ fn kitti_pairs_by_index_like_evo() {
     ]);
     assert_near(&ate, "rmse", 1.303449715, 1e-8);
     assert_eq!(ate["pairs"], 4541);
+}
+
+#[test]
+fn relations_metric_matches_mrpt_reference_values() {
+    let Some(data) = data("relations_metric_matches_mrpt_reference_values") else {
+        return;
+    };
+    // (relations, estimate, trans mean, trans std, rot mean, rot std, count) from the README
+    let cases = [
+        (
+            "lidar2d/intel/intel.relations",
+            "trajectories/mrpt/mrpt_intel_icpLM.tum",
+            [0.0581078, 0.0666092, 1.0989798, 1.1127591],
+            2984,
+        ),
+        (
+            "lidar2d/aces/aces.relations",
+            "trajectories/mrpt/mrpt_aces_rbpfICP.tum",
+            [0.1719986, 0.6174905, 0.9287865, 1.2432707],
+            1279,
+        ),
+    ];
+    for (relations, est, [tm, ts, rm, rs], count) in cases {
+        let rel = data.join(relations);
+        let est = data.join(est);
+        let json = eval_json(&[
+            "relations",
+            "--relations",
+            rel.to_str().unwrap(),
+            "--est",
+            est.to_str().unwrap(),
+        ]);
+        assert_near(&json, "trans_mean", tm, 5e-8);
+        assert_near(&json, "trans_std", ts, 5e-8);
+        assert_near(&json, "rot_mean_deg", rm, 5e-8);
+        assert_near(&json, "rot_std_deg", rs, 5e-8);
+        assert_eq!(json["count"], count, "{relations}");
+        assert_eq!(json["missing"], 0, "{relations}");
+    }
 }
 
 #[test]

@@ -9,7 +9,8 @@ use clap::builder::{PossibleValuesParser, TypedValueParser};
 use slamkit_core::Trajectory;
 use slamkit_eval::plot::{plot_errors, ErrorSeries, TopView};
 use slamkit_eval::{
-    ate, rpe, Alignment, DeltaUnit, ErrorStats, Pairing, RpeConfig, DEFAULT_MAX_DIFF_S,
+    ate, relations_error, rpe, Alignment, DeltaUnit, ErrorStats, GroundTruthRelation, Pairing,
+    RelationsStats, RpeConfig, DEFAULT_MAX_DIFF_S,
 };
 use slamkit_io::{read_trajectory, TrajectoryFormat};
 use std::path::{Path, PathBuf};
@@ -29,6 +30,8 @@ pub enum EvalMetric {
     Ate(AteArgs),
     /// Relative pose error over a delta in frames or metres (evo_rpe, translation part).
     Rpe(RpeArgs),
+    /// Relations metric (Kümmerle et al. 2009) against a `.relations` file.
+    Relations(RelationsArgs),
 }
 
 /// Input trajectories and output options shared by `ate` and `rpe`.
@@ -77,6 +80,20 @@ pub struct RpeArgs {
     pub all_pairs: bool,
 }
 
+/// Arguments of `slamkit eval relations`.
+#[derive(Debug, clap::Args)]
+pub struct RelationsArgs {
+    /// Ground-truth relations file (`t1 t2 x y z roll pitch yaw` per line).
+    #[arg(long)]
+    pub relations: PathBuf,
+    /// Estimated trajectory (TUM, KITTI or EuRoC CSV).
+    #[arg(long)]
+    pub est: PathBuf,
+    /// Print one JSON object instead of a table.
+    #[arg(long)]
+    pub json: bool,
+}
+
 fn alignment_parser() -> impl TypedValueParser<Value = Alignment> {
     PossibleValuesParser::new(["se3", "sim3", "none"]).try_map(|s| s.parse::<Alignment>())
 }
@@ -93,6 +110,7 @@ pub fn run(args: &EvalArgs) -> anyhow::Result<()> {
     match &args.metric {
         EvalMetric::Ate(a) => run_ate(a),
         EvalMetric::Rpe(a) => run_rpe(a),
+        EvalMetric::Relations(a) => run_relations(a),
     }
 }
 
@@ -151,6 +169,33 @@ fn run_rpe(args: &RpeArgs) -> anyhow::Result<()> {
     print_stats(&title, &result.stats, args.input.json)
 }
 
+fn run_relations(args: &RelationsArgs) -> anyhow::Result<()> {
+    let relations: Vec<GroundTruthRelation> =
+        slamkit_io::relations::read_relations(&args.relations)
+            .with_context(|| format!("reading relations {}", args.relations.display()))?
+            .into_iter()
+            .map(|r| GroundTruthRelation {
+                t1: r.t1,
+                t2: r.t2,
+                t1_from_t2: r.t1_from_t2,
+            })
+            .collect();
+    let (est, _) = read(&args.est)?;
+    let stats = relations_error(&relations, &est).with_context(|| {
+        format!(
+            "scoring {} on {}",
+            args.est.display(),
+            args.relations.display()
+        )
+    })?;
+    if args.json {
+        println!("{}", serde_json::to_string(&stats)?);
+    } else {
+        print_relations(&stats);
+    }
+    Ok(())
+}
+
 fn read(path: &Path) -> anyhow::Result<(Trajectory, TrajectoryFormat)> {
     read_trajectory(path).with_context(|| format!("reading trajectory {}", path.display()))
 }
@@ -192,4 +237,19 @@ fn print_stats(title: &str, stats: &ErrorStats, json: bool) -> anyhow::Result<()
         println!("  {name:<7}{value:>12.6} m");
     }
     Ok(())
+}
+
+fn print_relations(s: &RelationsStats) {
+    println!(
+        "relations metric: {} relations scored, {} without estimated poses",
+        s.count, s.missing
+    );
+    println!(
+        "  translation  {:>10.7} ± {:.7} m    (mean squared {:.7} m²)",
+        s.trans_mean, s.trans_std, s.trans_sq_mean
+    );
+    println!(
+        "  rotation     {:>10.7} ± {:.7} deg  (mean squared {:.7} deg²)",
+        s.rot_mean_deg, s.rot_std_deg, s.rot_sq_mean_deg2
+    );
 }
