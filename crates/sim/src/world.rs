@@ -1,0 +1,305 @@
+//! Worlds described in TOML: a room (floor, ceiling, four walls) holding walls, boxes,
+//! cylinders and ramps, each with a height range so a drone can fly over or under it.
+//!
+//! The world frame has its origin at a floor corner of the room, x and y along the walls and z
+//! up; the room spans `[0, size_m[0]] × [0, size_m[1]] × [0, height_m]`. Every surface carries
+//! a procedural [`Texture`] so that camera images have features to track. Each world also names
+//! a default drone flight (waypoints `x y z yaw`), a ground-robot drive (`x y`) and a 2D
+//! navigation goal.
+//!
+//! Three worlds are built in ([`World::builtin`]), after the seed's experiments:
+//! `small` (5 × 5 × 1 m), `large` (10 × 10 × 2.4 m, with a ramp) and `office`
+//! (12.9 × 7.7 × 2.5 m, desks, shelves and pillars).
+
+use crate::texture::Texture;
+use crate::SimError;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// Names of the worlds shipped with the crate.
+pub const BUILTIN_WORLDS: [&str; 3] = ["small", "large", "office"];
+
+/// A world: the room, what stands in it, and its default paths.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct World {
+    /// Name shown in reports.
+    pub name: String,
+    /// Room extent along x and y \[m\].
+    pub size_m: [f64; 2],
+    /// Room height (floor to ceiling) \[m\].
+    pub height_m: f64,
+    /// Texture of the floor.
+    #[serde(default = "Texture::floor")]
+    pub floor_texture: Texture,
+    /// Texture of the ceiling.
+    #[serde(default = "Texture::ceiling")]
+    pub ceiling_texture: Texture,
+    /// Texture of the four room walls.
+    #[serde(default = "Texture::room_wall")]
+    pub wall_texture: Texture,
+    /// Default drone flight: waypoints `[x, y, z, yaw]` \[m, m, m, rad\].
+    pub flight_path: Vec<[f64; 4]>,
+    /// Default ground-robot drive: waypoints `[x, y]` \[m\] (obstacle-free at floor level).
+    pub drive_path: Vec<[f64; 2]>,
+    /// Default navigation goal `[x, y]` \[m\].
+    pub nav_goal: [f64; 2],
+    /// Walls inside the room.
+    #[serde(default)]
+    pub walls: Vec<Wall>,
+    /// Boxes (desks, shelves, crates), possibly rotated about z.
+    #[serde(default)]
+    pub boxes: Vec<BoxObstacle>,
+    /// Vertical cylinders (pillars, bins, table legs).
+    #[serde(default)]
+    pub cylinders: Vec<Cylinder>,
+    /// Inclined ramps (wedges).
+    #[serde(default)]
+    pub ramps: Vec<Ramp>,
+}
+
+/// A straight wall from `from` to `to`, `thickness_m` thick, between two heights.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Wall {
+    /// One end of the wall's centre line `[x, y]` \[m\].
+    pub from: [f64; 2],
+    /// The other end `[x, y]` \[m\].
+    pub to: [f64; 2],
+    /// Thickness \[m\].
+    #[serde(default = "default_wall_thickness")]
+    pub thickness_m: f64,
+    /// Bottom and top heights `[z_min, z_max]` \[m\].
+    pub z_m: [f64; 2],
+    /// Surface texture (hash-noise blobs when omitted).
+    #[serde(default)]
+    pub texture: Option<Texture>,
+}
+
+/// A box standing upright, rotated by `yaw_rad` about its vertical axis.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BoxObstacle {
+    /// Centre of the footprint `[x, y]` \[m\].
+    pub center: [f64; 2],
+    /// Footprint size `[length along its x, width along its y]` \[m\].
+    pub size_m: [f64; 2],
+    /// Rotation about z \[rad\].
+    #[serde(default)]
+    pub yaw_rad: f64,
+    /// Bottom and top heights `[z_min, z_max]` \[m\] (a table top: `[0.7, 0.75]`).
+    pub z_m: [f64; 2],
+    /// Surface texture (hash-noise blobs when omitted).
+    #[serde(default)]
+    pub texture: Option<Texture>,
+}
+
+/// A vertical cylinder.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Cylinder {
+    /// Axis position `[x, y]` \[m\].
+    pub center: [f64; 2],
+    /// Radius \[m\].
+    pub radius_m: f64,
+    /// Bottom and top heights `[z_min, z_max]` \[m\].
+    pub z_m: [f64; 2],
+    /// Surface texture (hash-noise blobs when omitted).
+    #[serde(default)]
+    pub texture: Option<Texture>,
+}
+
+/// A wedge whose top rises along its own x axis from `z_m[0]` at the low end to `z_m[1]` at
+/// the high end; its bottom is flat at `z_m[0]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Ramp {
+    /// Centre of the footprint `[x, y]` \[m\].
+    pub center: [f64; 2],
+    /// Footprint `[length along the slope, width]` \[m\].
+    pub size_m: [f64; 2],
+    /// Direction of the rise, about z \[rad\].
+    #[serde(default)]
+    pub yaw_rad: f64,
+    /// Bottom height and height of the high end `[z_min, z_max]` \[m\].
+    pub z_m: [f64; 2],
+    /// Surface texture (hash-noise blobs when omitted).
+    #[serde(default)]
+    pub texture: Option<Texture>,
+}
+
+fn default_wall_thickness() -> f64 {
+    0.1
+}
+
+impl World {
+    /// One of the [`BUILTIN_WORLDS`], parsed from the TOML shipped in `crates/sim/worlds/`.
+    pub fn builtin(name: &str) -> Result<World, SimError> {
+        let text = match name {
+            "small" => include_str!("../worlds/small.toml"),
+            "large" => include_str!("../worlds/large.toml"),
+            "office" => include_str!("../worlds/office.toml"),
+            _ => {
+                return Err(SimError::UnknownWorld {
+                    name: name.to_string(),
+                })
+            }
+        };
+        World::from_toml(text, name)
+    }
+
+    /// A built-in world by name, or else a TOML world file at that path.
+    pub fn by_name_or_file(name_or_path: &str) -> Result<World, SimError> {
+        if BUILTIN_WORLDS.contains(&name_or_path) {
+            return World::builtin(name_or_path);
+        }
+        let path = Path::new(name_or_path);
+        let text = std::fs::read_to_string(path).map_err(|e| match e.kind() {
+            std::io::ErrorKind::NotFound => SimError::UnknownWorld {
+                name: name_or_path.to_string(),
+            },
+            _ => SimError::Parse {
+                world: name_or_path.to_string(),
+                message: e.to_string(),
+            },
+        })?;
+        World::from_toml(&text, name_or_path)
+    }
+
+    /// Parses and validates a world; `origin` names it in errors.
+    pub fn from_toml(text: &str, origin: &str) -> Result<World, SimError> {
+        let world: World = toml::from_str(text).map_err(|e| SimError::Parse {
+            world: origin.to_string(),
+            message: e.to_string(),
+        })?;
+        world.validate().map_err(|what| SimError::InvalidWorld {
+            world: origin.to_string(),
+            what,
+        })?;
+        Ok(world)
+    }
+
+    /// True when `(x, y, z)` is inside the room.
+    pub fn contains(&self, x: f64, y: f64, z: f64) -> bool {
+        (0.0..=self.size_m[0]).contains(&x)
+            && (0.0..=self.size_m[1]).contains(&y)
+            && (0.0..=self.height_m).contains(&z)
+    }
+
+    /// Checks sizes, heights and that every path point and the goal lie in the room.
+    fn validate(&self) -> Result<(), String> {
+        let positive = |v: f64| v.is_finite() && v > 0.0;
+        if !(positive(self.size_m[0]) && positive(self.size_m[1]) && positive(self.height_m)) {
+            return Err("size_m and height_m must be positive".into());
+        }
+        check_range("floor", &[0.0, self.height_m])?;
+        for (i, w) in self.walls.iter().enumerate() {
+            check_range(&format!("walls[{i}]"), &w.z_m)?;
+            let len = ((w.to[0] - w.from[0]).powi(2) + (w.to[1] - w.from[1]).powi(2)).sqrt();
+            if !(positive(len) && positive(w.thickness_m)) {
+                return Err(format!("walls[{i}]: zero length or thickness"));
+            }
+        }
+        for (i, b) in self.boxes.iter().enumerate() {
+            check_range(&format!("boxes[{i}]"), &b.z_m)?;
+            if !(positive(b.size_m[0]) && positive(b.size_m[1]) && b.yaw_rad.is_finite()) {
+                return Err(format!("boxes[{i}]: size_m must be positive"));
+            }
+        }
+        for (i, c) in self.cylinders.iter().enumerate() {
+            check_range(&format!("cylinders[{i}]"), &c.z_m)?;
+            if !positive(c.radius_m) {
+                return Err(format!("cylinders[{i}]: radius_m must be positive"));
+            }
+        }
+        for (i, r) in self.ramps.iter().enumerate() {
+            check_range(&format!("ramps[{i}]"), &r.z_m)?;
+            if !(positive(r.size_m[0]) && positive(r.size_m[1]) && r.yaw_rad.is_finite()) {
+                return Err(format!("ramps[{i}]: size_m must be positive"));
+            }
+        }
+        self.validate_paths()
+    }
+
+    fn validate_paths(&self) -> Result<(), String> {
+        if self.flight_path.len() < 2 || self.drive_path.len() < 2 {
+            return Err("flight_path and drive_path need at least 2 waypoints".into());
+        }
+        for (i, w) in self.flight_path.iter().enumerate() {
+            if !self.contains(w[0], w[1], w[2]) || !w[3].is_finite() {
+                return Err(format!("flight_path[{i}] {w:?} is outside the room"));
+            }
+        }
+        for (i, w) in self.drive_path.iter().enumerate() {
+            if !self.contains(w[0], w[1], 0.0) {
+                return Err(format!("drive_path[{i}] {w:?} is outside the room"));
+            }
+        }
+        if !self.contains(self.nav_goal[0], self.nav_goal[1], 0.0) {
+            return Err(format!("nav_goal {:?} is outside the room", self.nav_goal));
+        }
+        Ok(())
+    }
+}
+
+/// A height range must be finite and increasing.
+fn check_range(what: &str, z: &[f64; 2]) -> Result<(), String> {
+    if z[0].is_finite() && z[1].is_finite() && z[0] < z[1] {
+        Ok(())
+    } else {
+        Err(format!(
+            "{what}: z_m {z:?} must be finite with z_min < z_max"
+        ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_shipped_world_parses() {
+        for name in BUILTIN_WORLDS {
+            let w = World::builtin(name).unwrap();
+            assert_eq!(w.name, name);
+            assert!(w.boxes.len() + w.cylinders.len() >= 4, "{name}");
+        }
+        let large = World::builtin("large").unwrap();
+        assert_eq!((large.size_m, large.height_m), ([10.0, 10.0], 2.4));
+        assert!(!large.ramps.is_empty());
+        let office = World::builtin("office").unwrap();
+        assert_eq!((office.size_m, office.height_m), ([12.9, 7.7], 2.5));
+        let small = World::builtin("small").unwrap();
+        assert_eq!((small.size_m, small.height_m), ([5.0, 5.0], 1.0));
+    }
+
+    const MINIMAL: &str = r#"
+        name = "t"
+        size_m = [4.0, 3.0]
+        height_m = 2.0
+        flight_path = [[1.0, 1.0, 0.5, 0.0], [2.0, 1.0, 0.5, 0.0]]
+        drive_path = [[1.0, 1.0], [2.0, 1.0]]
+        nav_goal = [3.0, 2.0]
+    "#;
+
+    #[test]
+    fn unknown_fields_and_bad_geometry_are_errors() {
+        assert!(World::from_toml(MINIMAL, "t").is_ok());
+        let typo = format!("{MINIMAL}\nheigth_m = 2.0");
+        let err = World::from_toml(&typo, "t").unwrap_err();
+        assert!(err.to_string().contains("heigth_m"), "{err}");
+        let bad_box =
+            format!("{MINIMAL}\n[[boxes]]\ncenter = [1, 1]\nsize_m = [1, 1]\nz_m = [1, 0.5]");
+        assert!(matches!(
+            World::from_toml(&bad_box, "t"),
+            Err(SimError::InvalidWorld { .. })
+        ));
+        let outside = MINIMAL.replace("[3.0, 2.0]", "[5.0, 2.0]");
+        assert!(World::from_toml(&outside, "t").is_err());
+        assert!(World::from_toml("garbage = [", "t").is_err());
+        assert!(matches!(
+            World::by_name_or_file("/nonexistent/world.toml"),
+            Err(SimError::UnknownWorld { .. })
+        ));
+    }
+}
