@@ -170,16 +170,7 @@ fn run_rpe(args: &RpeArgs) -> anyhow::Result<()> {
 }
 
 fn run_relations(args: &RelationsArgs) -> anyhow::Result<()> {
-    let relations: Vec<GroundTruthRelation> =
-        slamkit_io::relations::read_relations(&args.relations)
-            .with_context(|| format!("reading relations {}", args.relations.display()))?
-            .into_iter()
-            .map(|r| GroundTruthRelation {
-                t1: r.t1,
-                t2: r.t2,
-                t1_from_t2: r.t1_from_t2,
-            })
-            .collect();
+    let relations = load_relations(&args.relations)?;
     let (est, _) = read(&args.est)?;
     let stats = relations_error(&relations, &est).with_context(|| {
         format!(
@@ -194,6 +185,19 @@ fn run_relations(args: &RelationsArgs) -> anyhow::Result<()> {
         print_relations(&stats);
     }
     Ok(())
+}
+
+/// Reads a `.relations` file into the metric's ground-truth type.
+pub fn load_relations(path: &Path) -> anyhow::Result<Vec<GroundTruthRelation>> {
+    Ok(slamkit_io::relations::read_relations(path)
+        .with_context(|| format!("reading relations {}", path.display()))?
+        .into_iter()
+        .map(|r| GroundTruthRelation {
+            t1: r.t1,
+            t2: r.t2,
+            t1_from_t2: r.t1_from_t2,
+        })
+        .collect())
 }
 
 fn read(path: &Path) -> anyhow::Result<(Trajectory, TrajectoryFormat)> {

@@ -1,12 +1,155 @@
-//! `slamkit lidar`: placeholder until ICP-SLAM lands.
+//! `slamkit lidar`: 2D lidar SLAM on a CARMEN log, with the map, trajectory and report written
+//! to the output folder, and the relations metric when the benchmark's `.relations` file is
+//! known.
 
-use crate::output::not_yet;
+use crate::commands::eval::load_relations;
+use crate::output::{peak_rss_bytes, prepare_out_dir, progress_bar, timings_json, write_report};
+use anyhow::Context;
+use serde_json::json;
+use slamkit_core::LaserScan;
+use slamkit_lidar::icp_slam::{run_icp_slam, IcpSlamConfig, IcpSlamOutput};
+use slamkit_map::{save_map_yaml, save_png, OccupancyGrid, OccupancyGridConfig};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// SLAM methods.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Method {
+    /// Incremental scan-to-map ICP (as MRPT's icp-slam).
+    Icp,
+    /// Rao-Blackwellised particle filter (GMapping-style).
+    Rbpf,
+}
 
 /// Arguments of `slamkit lidar`.
 #[derive(Debug, clap::Args)]
-pub struct LidarArgs {}
+pub struct LidarArgs {
+    /// CARMEN log (plain or gzip).
+    pub log: PathBuf,
+    /// SLAM method.
+    #[arg(long, value_enum, default_value = "icp")]
+    pub method: Method,
+    /// Particles of the particle filter.
+    #[arg(long, default_value_t = 30)]
+    pub particles: usize,
+    /// Localise in this saved map (ROS map_server YAML) instead of building one.
+    #[arg(long)]
+    pub localize: Option<PathBuf>,
+    /// TOML file with configuration overrides (fields of the method's config).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Benchmark relations to score against; by default `<log stem>.relations` beside the log.
+    #[arg(long)]
+    pub relations: Option<PathBuf>,
+    /// Output folder.
+    #[arg(long, default_value = "out/lidar")]
+    pub out: PathBuf,
+}
 
 /// Runs `slamkit lidar`.
-pub fn run(_args: &LidarArgs) -> anyhow::Result<()> {
-    not_yet("lidar", "lidar SLAM, issue #3")
+pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
+    if args.localize.is_some() {
+        anyhow::bail!("`slamkit lidar --localize` is not implemented yet (issue #3)");
+    }
+    if args.method == Method::Rbpf {
+        anyhow::bail!("`slamkit lidar --method rbpf` is not implemented yet (issue #3)");
+    }
+    let started = Instant::now();
+    let config = load_config(args.config.as_deref())?;
+    let out = prepare_out_dir(&args.out)?;
+    let log = slamkit_io::carmen::read_carmen(&args.log)
+        .with_context(|| format!("reading log {}", args.log.display()))?;
+    if log.scans.is_empty() {
+        anyhow::bail!("{} holds no laser scan", args.log.display());
+    }
+    let bar = progress_bar(log.scans.len() as u64, "icp-slam");
+    let result = run_icp_slam(&log.scans, &config, |_| bar.inc(1))?;
+    bar.finish_and_clear();
+
+    slamkit_io::trajectory_file::write_tum(&out.join("trajectory.tum"), &result.trajectory)?;
+    let grid = build_grid(&log.scans, &result)?;
+    save_map_yaml(&grid, &out.join("map.yaml"))?;
+    save_png(&grid, &out.join("map.png"))?;
+
+    let metrics = match relations_path(args) {
+        Some(path) => {
+            let relations = load_relations(&path)?;
+            let stats = slamkit_eval::relations_error(&relations, &result.trajectory)
+                .with_context(|| format!("scoring against {}", path.display()))?;
+            json!({ "relations_file": path, "relations": stats })
+        }
+        None => json!(null),
+    };
+    let report = json!({
+        "input": args.log,
+        "method": "icp",
+        "config": config,
+        "frames": {
+            "read": log.scans.len(),
+            "processed": result.stats.scans_processed,
+            "skipped": result.stats.scans_skipped,
+            "failed": result.stats.matches_failed,
+            "unreadable_lines": log.skipped.len(),
+        },
+        "stats": result.stats,
+        "wall_seconds": started.elapsed().as_secs_f64(),
+        "timings_ms": timings_json(&result.timings),
+        "peak_rss_bytes": peak_rss_bytes(),
+        "metrics": metrics,
+    });
+    write_report(&out, &report)?;
+    print_summary(&out, &report);
+    Ok(())
+}
+
+fn load_config(path: Option<&Path>) -> anyhow::Result<IcpSlamConfig> {
+    let Some(path) = path else {
+        return Ok(IcpSlamConfig::default());
+    };
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    toml::from_str(&text).with_context(|| format!("parsing config {}", path.display()))
+}
+
+/// The explicit `--relations`, else `<stem>.relations` beside the log (`intel.fromrosbag.clf.gz`
+/// → `intel.relations`), when it exists.
+fn relations_path(args: &LidarArgs) -> Option<PathBuf> {
+    if let Some(path) = &args.relations {
+        return Some(path.clone());
+    }
+    let name = args.log.file_name()?.to_str()?;
+    let stem = name.split('.').next()?;
+    let candidate = args.log.with_file_name(format!("{stem}.relations"));
+    candidate.exists().then_some(candidate)
+}
+
+/// Inserts every scan at its estimated pose into a fresh occupancy grid.
+fn build_grid(scans: &[LaserScan], result: &IcpSlamOutput) -> anyhow::Result<OccupancyGrid> {
+    let mut grid = OccupancyGrid::new(OccupancyGridConfig::default())?;
+    for (scan, est) in scans.iter().zip(&result.estimates) {
+        let world_from_laser = est.world_from_base * scan.base_from_laser;
+        grid.insert_scan(scan, &world_from_laser)
+            .context("inserting a scan into the occupancy grid")?;
+    }
+    Ok(grid)
+}
+
+fn print_summary(out: &Path, report: &serde_json::Value) {
+    let f = &report["frames"];
+    println!(
+        "scans: {} read, {} processed, {} skipped, {} failed matches; {:.1} s",
+        f["read"], f["processed"], f["skipped"], f["failed"], report["wall_seconds"]
+    );
+    let r = &report["metrics"]["relations"];
+    if !r.is_null() {
+        println!(
+            "relations metric: {:.4} ± {:.4} m, {:.3} ± {:.3} deg over {} relations",
+            r["trans_mean"].as_f64().unwrap_or(f64::NAN),
+            r["trans_std"].as_f64().unwrap_or(f64::NAN),
+            r["rot_mean_deg"].as_f64().unwrap_or(f64::NAN),
+            r["rot_std_deg"].as_f64().unwrap_or(f64::NAN),
+            r["count"]
+        );
+    }
+    println!("outputs in {}", out.display());
 }
