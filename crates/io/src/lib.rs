@@ -10,6 +10,7 @@
 //!   [`seven_scenes`], [`redwood`], [`euroc`]; [`Dataset`] opens any of them by name.
 
 pub mod carmen;
+pub mod carmen_writer;
 pub mod dataset;
 pub mod error;
 pub mod euroc;
