@@ -7,6 +7,7 @@
 //!   `trajectories/mrpt/README.md` (an independent implementation of Kümmerle et al. 2009).
 //!
 //! Skipped when `SLAMKIT_DATA` is not set.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers fail loudly
 
 use std::path::PathBuf;
 use std::process::Command;
