@@ -12,10 +12,15 @@ fuzz_target!(|text: &str| {
             assert!(scan.angle_min_rad.is_finite() && scan.angle_increment_rad.is_finite());
             assert!(scan.max_range_m > 0.0 && scan.max_range_m.is_finite());
             assert!(scan.base_from_laser.rotation.angle().is_finite());
+            let odometry = scan.odometry.map(|o| o.translation.vector);
+            assert!(odometry.is_some_and(|t| t.iter().all(|v| v.is_finite())));
         }
     }
     if let Ok(gt) = parse_mrpt_ground_truth(text, "<fuzz>") {
         assert!(!gt.is_empty());
-        assert!(gt.poses.iter().all(|p| p.pose.rotation.coords.iter().all(|c| c.is_finite())));
+        assert!(gt
+            .poses
+            .iter()
+            .all(|p| p.pose.rotation.coords.iter().all(|c| c.is_finite())));
     }
 });

@@ -120,6 +120,9 @@ pub enum SkipReason {
     /// Reading the file failed at this line; the rest of the file was not read.
     #[error("read error, rest of file ignored: {0}")]
     ReadError(String),
+    /// Values are finite but so large that a derived pose overflows.
+    #[error("values out of range: {0}")]
+    OutOfRange(&'static str),
 }
 
 /// A CARMEN log that cannot be read at all.
@@ -439,6 +442,17 @@ fn parse_robotlaser(f: &Fields) -> Result<LaserScan, SkipReason> {
     let poses = f.nums(raw.next_field, 6)?;
     let world_from_laser = Pose2::new([poses[0], poses[1]].into(), poses[2]);
     let world_from_robot = Pose2::new([poses[3], poses[4]].into(), poses[5]);
+    let base_from_laser = world_from_robot.inverse() * world_from_laser;
+    if !base_from_laser
+        .translation
+        .vector
+        .iter()
+        .all(|v| v.is_finite())
+    {
+        return Err(SkipReason::OutOfRange(
+            "laser and robot poses too far apart",
+        ));
+    }
     Ok(LaserScan {
         timestamp: f.num(raw.next_field + 11)?,
         angle_min_rad: raw.angle_min_rad,
@@ -446,7 +460,7 @@ fn parse_robotlaser(f: &Fields) -> Result<LaserScan, SkipReason> {
         max_range_m: no_return_threshold(Some(raw.max_range_field_m)),
         ranges_m: raw.ranges_m,
         odometry: Some(world_from_robot),
-        base_from_laser: world_from_robot.inverse() * world_from_laser,
+        base_from_laser,
     })
 }
 
@@ -499,8 +513,9 @@ impl OdometryBracket {
 fn odometry_at(t: f64, before: Option<OdomSample>, after: Option<OdomSample>) -> Option<Pose2> {
     match (before, after) {
         (Some(a), Some(b)) if a.timestamp <= t && t <= b.timestamp && a.timestamp < b.timestamp => {
-            let s = (t - a.timestamp) / (b.timestamp - a.timestamp);
-            Some(interpolate_pose2(&a.pose, &b.pose, s))
+            // Halved so that stamps near ±f64::MAX cannot overflow to inf / inf = NaN.
+            let s = (t / 2.0 - a.timestamp / 2.0) / (b.timestamp / 2.0 - a.timestamp / 2.0);
+            Some(interpolate_pose2(&a.pose, &b.pose, s.clamp(0.0, 1.0)))
         }
         (Some(a), Some(b)) => {
             let nearer = if (t - a.timestamp).abs() <= (b.timestamp - t).abs() {
@@ -515,9 +530,10 @@ fn odometry_at(t: f64, before: Option<OdomSample>, after: Option<OdomSample>) ->
     }
 }
 
-/// Linear interpolation of position and of heading along the shorter arc, `s` in [0, 1].
+/// Linear interpolation of position and of heading along the shorter arc, `s` in [0, 1];
+/// written as `a·(1−s) + b·s` so that it stays finite for any finite `a`, `b`.
 fn interpolate_pose2(a: &Pose2, b: &Pose2, s: f64) -> Pose2 {
-    let p = a.translation.vector.lerp(&b.translation.vector, s);
+    let p = a.translation.vector * (1.0 - s) + b.translation.vector * s;
     let dtheta = wrap_angle(b.rotation.angle() - a.rotation.angle());
     Pose2::new(p, a.rotation.angle() + s * dtheta)
 }
@@ -619,6 +635,28 @@ mod tests {
         let ts: Vec<f64> = log.scans.iter().map(|s| s.timestamp).collect();
         assert_eq!(ts, vec![3.0, 9.0, 20.0]);
         assert_eq!(log.odometry_lines, 2);
+    }
+
+    /// Regression (found by review while fuzzing): stamps near ±f64::MAX made the bracket
+    /// weight inf / inf = NaN, and poses that far apart an infinite laser mounting.
+    #[test]
+    fn extreme_values_give_finite_odometry_or_a_skip() {
+        let text = [
+            odom(-1e308, 0.0, -1e308),
+            rawlaser(&[1.0; 2], 1e308),
+            odom(1.7e308, 0.0, 1.7e308),
+        ]
+        .join("\n");
+        let o = parse(&text).unwrap().scans[0].odometry.unwrap();
+        assert!(
+            o.translation.x.is_finite() && o.rotation.angle().is_finite(),
+            "{o}"
+        );
+        let robot = "ROBOTLASER1 0 -1.5 3.0 1.5 20 0.01 0 3 1 2 3 0 \
+                     1e308 0 0 -1e308 0 0 0 0 0 0 0 7.5 host 7.5";
+        let log = parse(&format!("{robot}\n{}", rawlaser(&[1.0; 2], 1.0))).unwrap();
+        assert_eq!(log.skipped.len(), 1);
+        assert_eq!(log.skipped[0].line, 1);
     }
 
     #[test]

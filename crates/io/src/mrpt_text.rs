@@ -64,10 +64,17 @@ pub fn parse_mrpt_text(text: &str, origin: &str) -> Result<MrptLog, IoError> {
             tokens: &tokens,
         };
         let result = match name {
-            "ODOM_INC" => parse_increment(&fields).map(|increment| {
-                odom_from_base *= increment;
-                log.odometry_increments += 1;
-            }),
+            "ODOM_INC" => parse_increment(&fields)
+                .map(|increment| odom_from_base * increment)
+                .and_then(|next| {
+                    if next.translation.vector.iter().all(|v| v.is_finite()) {
+                        odom_from_base = next;
+                        log.odometry_increments += 1;
+                        Ok(())
+                    } else {
+                        Err(SkipReason::OutOfRange("accumulated odometry overflows"))
+                    }
+                }),
             "SCAN" => parse_scan(&fields, odom_from_base).map(|scan| log.scans.push(scan)),
             _ => Err(SkipReason::Garbage {
                 start: name.chars().take(16).collect(),
@@ -215,6 +222,15 @@ mod tests {
             parse_mrpt_text("# c\n", "<t>"),
             Err(IoError::Empty { .. })
         ));
+    }
+
+    /// Regression: increments near f64::MAX made the accumulated odometry infinite.
+    #[test]
+    fn overflowing_increment_is_skipped() {
+        let text = format!("ODOM_INC 0 1e308 0 0\nODOM_INC 0 1e308 0 0\n{SCAN}\n");
+        let log = parse_mrpt_text(&text, "<t>").unwrap();
+        assert_eq!(log.skipped.len(), 1);
+        assert_eq!(log.scans[0].odometry.unwrap().translation.x, 1e308);
     }
 
     #[test]
