@@ -1,0 +1,84 @@
+//! ICP-SLAM on the Freiburg 2D SLAM benchmark logs (Kümmerle et al. 2009), scored with the
+//! relations metric. Logs: Intel Research Lab and ACES (CARMEN text decoded from the benchmark's
+//! ROS bags), MIT CSAIL (original CARMEN log); see `$SLAMKIT_DATA/lidar2d/SOURCES.md`.
+//!
+//! The bounds are regression guards at what the default configuration reaches today (measured:
+//! Intel 0.283 m, ACES 0.291 m, CSAIL 0.155 m mean translational error). They are not yet the
+//! issue's targets (Intel ≤ 0.058, ACES ≤ 0.173, CSAIL ≤ 0.106 m). Skipped when `SLAMKIT_DATA` is
+//! not set; run with `--release`.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers fail loudly
+
+use slamkit_eval::{relations_error, GroundTruthRelation};
+use slamkit_lidar::icp_slam::{run_icp_slam, IcpSlamConfig};
+use std::path::PathBuf;
+
+fn data_dir(test: &str) -> Option<PathBuf> {
+    match std::env::var("SLAMKIT_DATA") {
+        Ok(dir) => Some(PathBuf::from(dir).join("lidar2d")),
+        Err(_) => {
+            eprintln!("skipped: {test}: SLAMKIT_DATA not set");
+            None
+        }
+    }
+}
+
+/// Runs ICP-SLAM with the default configuration and returns the mean translational error [m].
+fn relations_mean_error(dir: PathBuf, log: &str, relations: &str) -> f64 {
+    let scans = slamkit_io::carmen::read_carmen(&dir.join(log))
+        .unwrap()
+        .scans;
+    let out = run_icp_slam(&scans, &IcpSlamConfig::default(), |_| {}).unwrap();
+    assert_eq!(out.trajectory.len(), scans.len(), "one pose per scan");
+    let relations: Vec<GroundTruthRelation> =
+        slamkit_io::relations::read_relations(&dir.join(relations))
+            .unwrap()
+            .into_iter()
+            .map(|r| GroundTruthRelation {
+                t1: r.t1,
+                t2: r.t2,
+                t1_from_t2: r.t1_from_t2,
+            })
+            .collect();
+    let stats = relations_error(&relations, &out.trajectory).unwrap();
+    assert_eq!(stats.missing, 0, "every relation stamp is a scan stamp");
+    eprintln!(
+        "{log}: {:.4} ± {:.4} m, {:.3} ± {:.3} deg, {} relations",
+        stats.trans_mean, stats.trans_std, stats.rot_mean_deg, stats.rot_std_deg, stats.count
+    );
+    stats.trans_mean
+}
+
+#[test]
+fn icp_slam_intel() {
+    let Some(dir) = data_dir("icp_slam_intel") else {
+        return;
+    };
+    let err = relations_mean_error(
+        dir,
+        "intel/intel.fromrosbag.clf.gz",
+        "intel/intel.relations",
+    );
+    assert!(err < 0.32, "Intel mean error {err} m");
+}
+
+#[test]
+fn icp_slam_aces() {
+    let Some(dir) = data_dir("icp_slam_aces") else {
+        return;
+    };
+    let err = relations_mean_error(dir, "aces/aces.fromrosbag.clf.gz", "aces/aces.relations");
+    assert!(err < 0.32, "ACES mean error {err} m");
+}
+
+#[test]
+fn icp_slam_mit_csail() {
+    let Some(dir) = data_dir("icp_slam_mit_csail") else {
+        return;
+    };
+    let err = relations_mean_error(
+        dir,
+        "mit-csail/mit-csail.clf",
+        "mit-csail/mit-csail.relations",
+    );
+    assert!(err < 0.18, "MIT CSAIL mean error {err} m");
+}
