@@ -1,0 +1,372 @@
+//! ORB features (E. Rublee, V. Rabaud, K. Konolige, G. Bradski, "ORB: an efficient alternative
+//! to SIFT or SURF", ICCV 2011), following OpenCV's `ORB_Impl`:
+//!
+//! 1. a scale pyramid (`scale_factor` per level, bilinear resize of the previous level);
+//! 2. the feature budget split over levels in geometric proportion to their area, as OpenCV's
+//!    `nfeaturesPerLevel`;
+//! 3. per level: FAST-9 corners away from the border, the best `2n` by FAST score, then the
+//!    best `n` by Harris response (7×7 block, k = 0.04);
+//! 4. orientation from the intensity centroid of the radius-15 disc (P. Rosin, 1999);
+//! 5. a 256-bit rotated-BRIEF descriptor on the level image blurred by a 7×7, σ = 2 Gaussian,
+//!    using the learned pattern of [`crate::orb_pattern`].
+//!
+//! Keypoint positions are reported in level-0 pixels.
+
+use serde::{Deserialize, Serialize};
+use slamkit_core::image::GrayImage;
+
+use crate::error::VisionError;
+use crate::fast::{fast9, FastCorner};
+use crate::filter::gaussian_blur;
+use crate::orb_pattern::BIT_PATTERN_31;
+use crate::pyramid::resize_bilinear;
+
+/// A 256-bit binary descriptor, bit i in word i / 64.
+pub type Descriptor = [u64; 4];
+
+/// ORB parameters (OpenCV `ORB::create` defaults).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct OrbConfig {
+    /// Total number of features wanted over all levels.
+    pub n_features: usize,
+    /// Scale ratio between consecutive pyramid levels (> 1).
+    pub scale_factor: f32,
+    /// Number of pyramid levels.
+    pub n_levels: usize,
+    /// Margin where no feature is detected \[px at each level\]; ≥ 19 so the pattern fits.
+    pub edge_threshold: usize,
+    /// FAST intensity threshold \[grey levels\].
+    pub fast_threshold: u8,
+}
+
+impl Default for OrbConfig {
+    fn default() -> Self {
+        Self {
+            n_features: 500,
+            scale_factor: 1.2,
+            n_levels: 8,
+            edge_threshold: 31,
+            fast_threshold: 20,
+        }
+    }
+}
+
+/// An ORB keypoint.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Keypoint {
+    /// Column in the level-0 image \[px\].
+    pub x: f32,
+    /// Row in the level-0 image \[px\].
+    pub y: f32,
+    /// Pyramid level it was found on.
+    pub level: usize,
+    /// Orientation of the intensity centroid, `atan2(m01, m10)` in `[0, 2π)` \[rad\], with y
+    /// pointing down (OpenCV's `angle`, in radians).
+    pub angle_rad: f32,
+    /// Harris response.
+    pub response: f32,
+    /// Patch diameter at level 0 \[px\] (31 · scale).
+    pub size: f32,
+}
+
+/// Keypoints and their descriptors, index for index.
+#[derive(Debug, Clone, Default)]
+pub struct OrbFeatures {
+    /// Keypoints.
+    pub keypoints: Vec<Keypoint>,
+    /// Descriptors, `descriptors[i]` for `keypoints[i]`.
+    pub descriptors: Vec<Descriptor>,
+}
+
+const HALF_PATCH: usize = 15;
+const HARRIS_BLOCK: usize = 7;
+const HARRIS_K: f32 = 0.04;
+
+/// An ORB extractor with its precomputed tables.
+#[derive(Debug, Clone)]
+pub struct Orb {
+    config: OrbConfig,
+    per_level: Vec<usize>,
+    umax: Vec<usize>,
+}
+
+impl Orb {
+    /// Checks the configuration and prepares the per-level budget and the disc table.
+    pub fn new(config: OrbConfig) -> Result<Self, VisionError> {
+        if !(config.scale_factor > 1.0 && config.scale_factor.is_finite()) {
+            return Err(VisionError::config(
+                "scale_factor",
+                config.scale_factor,
+                "must be > 1",
+            ));
+        }
+        if config.n_levels == 0 || config.n_levels > 32 {
+            return Err(VisionError::config(
+                "n_levels",
+                config.n_levels,
+                "must be 1..=32",
+            ));
+        }
+        if config.edge_threshold < 19 {
+            return Err(VisionError::config(
+                "edge_threshold",
+                config.edge_threshold,
+                "must be >= 19",
+            ));
+        }
+        let per_level = features_per_level(config.n_features, config.scale_factor, config.n_levels);
+        Ok(Self {
+            config,
+            per_level,
+            umax: disc_table(HALF_PATCH),
+        })
+    }
+
+    /// Detects keypoints and computes their descriptors.
+    pub fn detect_and_compute(&self, img: &GrayImage) -> OrbFeatures {
+        let mut out = OrbFeatures::default();
+        let mut level_img = img.clone();
+        for (level, &n) in self.per_level.iter().enumerate() {
+            let scale = self.config.scale_factor.powi(level as i32);
+            if level > 0 {
+                let dw = (img.width() as f32 / scale).round() as usize;
+                let dh = (img.height() as f32 / scale).round() as usize;
+                level_img = resize_bilinear(&level_img, dw, dh);
+            }
+            if level_img.width() <= 2 * self.config.edge_threshold
+                || level_img.height() <= 2 * self.config.edge_threshold
+            {
+                break;
+            }
+            let kps = self.detect_level(&level_img, n);
+            if kps.is_empty() {
+                continue;
+            }
+            let Ok(blurred) = gaussian_blur(&level_img, 7, 2.0) else {
+                continue;
+            };
+            for k in kps {
+                let angle = self.ic_angle(&level_img, k.x, k.y);
+                out.descriptors.push(describe(&blurred, k.x, k.y, angle));
+                out.keypoints.push(Keypoint {
+                    x: k.x as f32 * scale,
+                    y: k.y as f32 * scale,
+                    level,
+                    angle_rad: angle,
+                    response: harris_response(&level_img, k.x, k.y),
+                    size: 31.0 * scale,
+                });
+            }
+        }
+        out
+    }
+
+    /// FAST corners of one level, the best `2n` by FAST score, then the best `n` by Harris.
+    fn detect_level(&self, img: &GrayImage, n: usize) -> Vec<FastCorner> {
+        let mut kps = fast9(
+            img,
+            self.config.fast_threshold,
+            self.config.edge_threshold,
+            true,
+        );
+        retain_best(&mut kps, 2 * n, |k| f32::from(k.score));
+        let mut scored: Vec<(FastCorner, f32)> = kps
+            .into_iter()
+            .map(|k| (k, harris_response(img, k.x, k.y)))
+            .collect();
+        retain_best(&mut scored, n, |s| s.1);
+        scored.into_iter().map(|s| s.0).collect()
+    }
+
+    /// Intensity-centroid angle over the radius-15 disc \[rad\], in `[0, 2π)`.
+    fn ic_angle(&self, img: &GrayImage, x: usize, y: usize) -> f32 {
+        let w = img.width();
+        let d = img.data();
+        let c = y * w + x;
+        let (mut m01, mut m10) = (0i32, 0i32);
+        let r = HALF_PATCH as isize;
+        if let Some(row) = d.get(c - HALF_PATCH..=c + HALF_PATCH) {
+            m10 += row
+                .iter()
+                .zip(-r..=r)
+                .map(|(&v, u)| u as i32 * i32::from(v))
+                .sum::<i32>();
+        }
+        for v in 1..=HALF_PATCH {
+            let du = self.umax[v];
+            let (lo, hi) = (c + v * w, c - v * w);
+            let (Some(plus), Some(minus)) = (d.get(lo - du..=lo + du), d.get(hi - du..=hi + du))
+            else {
+                continue;
+            };
+            let mut v_sum = 0i32;
+            for ((&p, &m), u) in plus.iter().zip(minus).zip(-(du as i32)..) {
+                let (p, m) = (i32::from(p), i32::from(m));
+                v_sum += p - m;
+                m10 += u * (p + m);
+            }
+            m01 += v as i32 * v_sum;
+        }
+        let a = (m01 as f32).atan2(m10 as f32);
+        if a < 0.0 {
+            a + std::f32::consts::TAU
+        } else {
+            a
+        }
+    }
+}
+
+/// OpenCV's split of `n` features over `levels` levels in ratio `1/scale` per level.
+fn features_per_level(n: usize, scale: f32, levels: usize) -> Vec<usize> {
+    let factor = 1.0 / scale;
+    let mut desired = n as f32 * (1.0 - factor) / (1.0 - factor.powi(levels as i32));
+    let mut out = Vec::with_capacity(levels);
+    let mut sum = 0usize;
+    for _ in 0..levels.saturating_sub(1) {
+        let k = desired.round_ties_even().max(0.0) as usize;
+        out.push(k);
+        sum += k;
+        desired *= factor;
+    }
+    out.push(n.saturating_sub(sum));
+    out
+}
+
+/// Half-widths of the rows of a digital disc of radius `r`, made symmetric as OpenCV's `umax`.
+fn disc_table(r: usize) -> Vec<usize> {
+    let mut umax = vec![0usize; r + 2];
+    let half = r as f64 * std::f64::consts::SQRT_2 / 2.0;
+    let vmax = (half + 1.0).floor() as usize;
+    let vmin = half.ceil() as usize;
+    for (v, u) in umax.iter_mut().enumerate().take(vmax + 1) {
+        *u = ((r * r - v * v) as f64).sqrt().round() as usize;
+    }
+    let mut v0 = 0;
+    for v in (vmin..=r).rev() {
+        while umax[v0] == umax[v0 + 1] {
+            v0 += 1;
+        }
+        umax[v] = v0;
+        v0 += 1;
+    }
+    umax
+}
+
+/// Keeps the `n` items with the largest `key` (order not kept); deterministic on ties.
+fn retain_best<T>(items: &mut Vec<T>, n: usize, key: impl Fn(&T) -> f32) {
+    if items.len() > n {
+        if n > 0 {
+            items.select_nth_unstable_by(n - 1, |a, b| key(b).total_cmp(&key(a)));
+        }
+        items.truncate(n);
+    }
+}
+
+/// Harris corner response over the 7×7 block around (x, y), with OpenCV's Sobel and scale.
+fn harris_response(img: &GrayImage, x: usize, y: usize) -> f32 {
+    let w = img.width();
+    let d = img.data();
+    let r = HARRIS_BLOCK / 2;
+    let (mut a, mut b, mut c) = (0i32, 0i32, 0i32);
+    for yy in y - r..=y + r {
+        let (Some(up), Some(mid), Some(dn)) = (
+            d.get((yy - 1) * w + x - r - 1..(yy - 1) * w + x + r + 2),
+            d.get(yy * w + x - r - 1..yy * w + x + r + 2),
+            d.get((yy + 1) * w + x - r - 1..(yy + 1) * w + x + r + 2),
+        ) else {
+            return 0.0;
+        };
+        for ((u, m), n) in up.windows(3).zip(mid.windows(3)).zip(dn.windows(3)) {
+            let p = |s: &[u8], i: usize| i32::from(s[i]);
+            let ix = (p(m, 2) - p(m, 0)) * 2 + (p(u, 2) - p(u, 0)) + (p(n, 2) - p(n, 0));
+            let iy = (p(n, 1) - p(u, 1)) * 2 + (p(n, 0) - p(u, 0)) + (p(n, 2) - p(u, 2));
+            a += ix * ix;
+            b += iy * iy;
+            c += ix * iy;
+        }
+    }
+    let scale = 1.0 / (4.0 * HARRIS_BLOCK as f32 * 255.0);
+    let s4 = scale * scale * scale * scale;
+    let (a, b, c) = (a as f32, b as f32, c as f32);
+    (a * b - c * c - HARRIS_K * (a + b) * (a + b)) * s4
+}
+
+/// Rotated BRIEF: bit i compares the blurred image at the two rotated, rounded pattern points.
+fn describe(blurred: &GrayImage, x: usize, y: usize, angle: f32) -> Descriptor {
+    let w = blurred.width() as isize;
+    let d = blurred.data();
+    let centre = (y * blurred.width() + x) as isize;
+    let (s, c) = angle.sin_cos();
+    let at = |px: i8, py: i8| {
+        let (px, py) = (f32::from(px), f32::from(py));
+        let ix = (px * c - py * s).round_ties_even() as isize;
+        let iy = (px * s + py * c).round_ties_even() as isize;
+        d.get((centre + iy * w + ix) as usize).copied().unwrap_or(0)
+    };
+    let mut desc = [0u64; 4];
+    for (i, p) in BIT_PATTERN_31.iter().enumerate() {
+        if at(p[0], p[1]) < at(p[2], p[3]) {
+            desc[i / 64] |= 1 << (i % 64);
+        }
+    }
+    desc
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn budget_matches_opencv() {
+        // 500·(1 − 1/1.2)/(1 − 1.2⁻⁸) = 108.6, then ×1/1.2 per level; the last takes the rest
+        assert_eq!(
+            features_per_level(500, 1.2, 8),
+            vec![109, 90, 75, 63, 52, 44, 36, 31]
+        );
+        assert_eq!(features_per_level(500, 1.2, 8).iter().sum::<usize>(), 500);
+    }
+
+    #[test]
+    fn disc_is_symmetric() {
+        let u = disc_table(15);
+        assert_eq!(u[0], 15);
+        assert_eq!(u[15], 3);
+        for v in 0..=15 {
+            // the disc is symmetric under transposition: row v reaches column u[v] iff ...
+            assert_eq!((0..=15).filter(|&k| u[k] >= v).count(), u[v] + 1, "row {v}");
+        }
+    }
+
+    #[test]
+    fn pattern_fits_the_edge_margin() {
+        let max = BIT_PATTERN_31
+            .iter()
+            .flat_map(|p| p.iter())
+            .map(|v| v.unsigned_abs())
+            .max();
+        assert_eq!(max, Some(13));
+    }
+
+    #[test]
+    fn bad_config_is_an_error() {
+        assert!(Orb::new(OrbConfig {
+            scale_factor: 1.0,
+            ..OrbConfig::default()
+        })
+        .is_err());
+        assert!(Orb::new(OrbConfig {
+            edge_threshold: 3,
+            ..OrbConfig::default()
+        })
+        .is_err());
+        assert!(Orb::new(OrbConfig {
+            n_levels: 0,
+            ..OrbConfig::default()
+        })
+        .is_err());
+        let orb = Orb::new(OrbConfig::default()).unwrap();
+        let tiny = GrayImage::filled(30, 30, 0);
+        assert!(orb.detect_and_compute(&tiny).keypoints.is_empty());
+    }
+}
