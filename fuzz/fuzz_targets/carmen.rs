@@ -22,7 +22,10 @@ fuzz_target!(|data: &[u8]| {
         });
         assert!(odometry_finite, "odometry {:?}", scan.odometry);
         let mount = scan.base_from_laser;
-        assert!(mount.translation.vector.iter().all(|v| v.is_finite()), "{mount:?}");
+        assert!(
+            mount.translation.vector.iter().all(|v| v.is_finite()),
+            "{mount:?}"
+        );
         assert!(mount.rotation.angle().is_finite(), "{mount:?}");
     }
 });

@@ -8,6 +8,9 @@ use slamkit_io::kitti::parse_calib;
 fuzz_target!(|text: &str| {
     if let Ok(calib) = parse_calib(text) {
         let baseline = calib.baseline_m();
-        assert!(baseline > 0.0 && baseline.is_finite(), "baseline {baseline}");
+        assert!(
+            baseline > 0.0 && baseline.is_finite(),
+            "baseline {baseline}"
+        );
     }
 });
