@@ -8,6 +8,7 @@
 //!   differential-drive robot; ground truth `world_from_base` at any time.
 //! * Sensors with seeded noise: [`lidar`] (planar, tilting with the robot), [`range_finder`]
 //!   (up and down), [`odometry`] (drifting).
+//! * [`relations`]: pairs of scans for benchmark relations files.
 //! * [`simulation`]: a robot, a world and its sensors; [`Simulation::lidar_run`] gives the scans,
 //!   ranges and ground truth of a whole run.
 //!
@@ -30,6 +31,7 @@ pub mod lidar;
 pub mod motion;
 pub mod odometry;
 pub mod range_finder;
+pub mod relations;
 pub mod scene;
 pub mod simulation;
 pub mod texture;
@@ -40,6 +42,7 @@ pub use lidar::Lidar2dConfig;
 pub use motion::{DiffDriveConfig, DroneConfig, RobotState, WaypointMotion};
 pub use odometry::{OdometryConfig, OdometrySimulator};
 pub use range_finder::{RangeFinderConfig, RangeReading};
+pub use relations::relation_pairs;
 pub use scene::{Hit, Scene};
 pub use simulation::{sample_times, LidarRun, RobotKind, SimConfig, Simulation, Stream};
 pub use texture::{Pattern, Texture};

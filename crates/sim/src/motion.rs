@@ -211,7 +211,10 @@ fn check_limits(limits: &[f64], accel_time_s: f64, waypoints: usize) -> Result<(
             "a path needs at least 2 waypoints".into(),
         ));
     }
-    if limits.iter().any(|v| !(v.is_finite() && *v > 0.0)) || accel_time_s.is_nan() || accel_time_s < 0.0 {
+    if limits.iter().any(|v| !(v.is_finite() && *v > 0.0))
+        || accel_time_s.is_nan()
+        || accel_time_s < 0.0
+    {
         return Err(SimError::InvalidConfig(
             "speed limits must be positive and accel_time_s not negative".into(),
         ));

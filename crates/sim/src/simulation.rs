@@ -186,32 +186,41 @@ impl Simulation {
         }
     }
 
-    /// The whole run's scans (with odometry), range readings and ground truth.
-    pub fn lidar_run(&self) -> LidarRun {
-        let times = self.sample_times(self.config.lidar.rate_hz);
+    /// Scans at `times` (sorted), each with the odometry accumulated up to it.
+    pub fn lidar_scans(&self, times: &[f64]) -> Vec<LaserScan> {
         let mut odometry = OdometrySimulator::new(
             self.odometry_config().clone(),
             self.rng(Stream::Odometry, 0),
         );
-        let mut ground_truth = Trajectory::new();
-        let mut scans = Vec::with_capacity(times.len());
-        for (i, &t) in times.iter().enumerate() {
-            let pose = self.state_at(t).world_from_base;
-            ground_truth.push(t, pose);
-            let mut scan = self.lidar_scan(i, t);
-            scan.odometry = Some(odometry.update(&pose3_to_pose2(&pose)));
-            scans.push(scan);
-        }
-        let ranges = self
-            .sample_times(self.config.range_finder.rate_hz)
+        times
+            .iter()
+            .enumerate()
+            .map(|(i, &t)| {
+                let pose = self.state_at(t).world_from_base;
+                let mut scan = self.lidar_scan(i, t);
+                scan.odometry = Some(odometry.update(&pose3_to_pose2(&pose)));
+                scan
+            })
+            .collect()
+    }
+
+    /// Range finder readings at `times`.
+    pub fn range_readings(&self, times: &[f64]) -> Vec<RangeReading> {
+        times
             .iter()
             .enumerate()
             .map(|(i, &t)| self.range_reading(i, t))
-            .collect();
+            .collect()
+    }
+
+    /// The whole run's scans (with odometry), range readings and ground truth, each sensor at
+    /// its own rate.
+    pub fn lidar_run(&self) -> LidarRun {
+        let times = self.sample_times(self.config.lidar.rate_hz);
         LidarRun {
-            scans,
-            ranges,
-            ground_truth,
+            scans: self.lidar_scans(&times),
+            ranges: self.range_readings(&self.sample_times(self.config.range_finder.rate_hz)),
+            ground_truth: self.ground_truth(&times),
         }
     }
 

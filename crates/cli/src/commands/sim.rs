@@ -1,7 +1,27 @@
 //! `slamkit sim`: simulated sensors in a world, written in real dataset formats.
+//!
+//! Files written in `--out`, by sensor:
+//! * always: `groundtruth.tum` (true `world_from_base` at every lidar time), `world.toml` (the
+//!   world simulated) and `report.json`;
+//! * `lidar2d`: `lidar.clf` (CARMEN log, ROBOTLASER1 lines with the drifting odometry) and
+//!   `lidar.relations` (Freiburg benchmark relations: scans 1 s apart and random far pairs, in
+//!   the plane: z, roll and pitch 0);
+//! * `range`: `ranges.csv` (`timestamp,up_m,down_m`, empty when nothing is in range).
+//!
+//! The same world, sensors and seed give the same files byte for byte.
 
-use crate::output::not_yet;
-use std::path::PathBuf;
+use crate::output::{peak_rss_bytes, prepare_out_dir, write_report};
+use anyhow::Context;
+use serde_json::json;
+use slamkit_core::pose::{pose2_to_pose3, pose3_to_pose2};
+use slamkit_core::Trajectory;
+use slamkit_io::carmen_writer::{write_carmen, write_relations};
+use slamkit_io::relations::Relation;
+use slamkit_io::write_tum;
+use slamkit_sim::{relation_pairs, SimConfig, Simulation, Stream, World};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
 
 /// Arguments of `slamkit sim`.
 #[derive(Debug, clap::Args)]
@@ -20,7 +40,111 @@ pub struct SimArgs {
     pub out: PathBuf,
 }
 
+/// The sensors `slamkit sim` can write.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Sensor {
+    Lidar2d,
+    Range,
+}
+
+fn parse_sensors(names: &[String]) -> anyhow::Result<Vec<Sensor>> {
+    let mut sensors = Vec::new();
+    for name in names {
+        let sensor = match name.trim() {
+            "lidar2d" => Sensor::Lidar2d,
+            "range" => Sensor::Range,
+            other => {
+                anyhow::bail!("unknown sensor {other:?} (known: lidar2d, range, rgbd, stereo)")
+            }
+        };
+        if !sensors.contains(&sensor) {
+            sensors.push(sensor);
+        }
+    }
+    Ok(sensors)
+}
+
 /// Runs `slamkit sim`.
-pub fn run(_args: &SimArgs) -> anyhow::Result<()> {
-    not_yet("sim", "simulator, issue #5")
+pub fn run(args: &SimArgs) -> anyhow::Result<()> {
+    let started = Instant::now();
+    let sensors = parse_sensors(&args.sensors)?;
+    let world = World::by_name_or_file(&args.world)?;
+    let world_toml = toml::to_string(&world).context("serialising the world")?;
+    let config = SimConfig::default();
+    let sim = Simulation::new(world, config.clone(), args.seed)?;
+    let out = prepare_out_dir(&args.out)?;
+    write_file(&out.join("world.toml"), &world_toml)?;
+    let lidar_times = sim.sample_times(config.lidar.rate_hz);
+    let ground_truth = sim.ground_truth(&lidar_times);
+    write_tum(&out.join("groundtruth.tum"), &ground_truth)?;
+    let mut frames = serde_json::Map::new();
+    if sensors.contains(&Sensor::Lidar2d) {
+        let (scans, relations) = write_lidar(&sim, &out, &ground_truth)?;
+        frames.insert(
+            "lidar2d".into(),
+            json!({ "scans": scans, "relations": relations }),
+        );
+    }
+    if sensors.contains(&Sensor::Range) {
+        let readings = write_ranges(&sim, &out)?;
+        frames.insert("range".into(), json!({ "readings": readings }));
+    }
+    let report = json!({
+        "input": { "world": args.world, "sensors": args.sensors, "seed": args.seed },
+        "config": config,
+        "duration_s": sim.duration_s(),
+        "frames": frames,
+        "wall_seconds": started.elapsed().as_secs_f64(),
+        "peak_rss_bytes": peak_rss_bytes(),
+    });
+    write_report(&out, &report)?;
+    println!(
+        "simulated {:.1} s of {} in {:.1} s; outputs in {}",
+        sim.duration_s(),
+        sim.world.name,
+        started.elapsed().as_secs_f64(),
+        out.display()
+    );
+    Ok(())
+}
+
+/// Writes `lidar.clf` and `lidar.relations`; returns the numbers of scans and relations.
+fn write_lidar(
+    sim: &Simulation,
+    out: &Path,
+    ground_truth: &Trajectory,
+) -> anyhow::Result<(usize, usize)> {
+    let times: Vec<f64> = ground_truth.poses.iter().map(|p| p.timestamp).collect();
+    let scans = sim.lidar_scans(&times);
+    write_carmen(&out.join("lidar.clf"), &scans)?;
+    let far_pairs = (times.len() / 50).max(10);
+    let pairs = relation_pairs(&times, 1.0, far_pairs, &mut sim.rng(Stream::Relations, 0));
+    let planar = |k: usize| pose2_to_pose3(&pose3_to_pose2(&ground_truth.poses[k].pose));
+    let relations: Vec<Relation> = pairs
+        .iter()
+        .map(|&(i, j)| Relation {
+            t1: times[i],
+            t2: times[j],
+            t1_from_t2: planar(i).inverse() * planar(j),
+        })
+        .collect();
+    write_relations(&out.join("lidar.relations"), &relations)?;
+    Ok((scans.len(), relations.len()))
+}
+
+/// Writes `ranges.csv`; returns the number of readings.
+fn write_ranges(sim: &Simulation, out: &Path) -> anyhow::Result<usize> {
+    let readings = sim.range_readings(&sim.sample_times(sim.config.range_finder.rate_hz));
+    let mut text = String::from("timestamp,up_m,down_m\n");
+    let field = |r: Option<f64>| r.map(|v| v.to_string()).unwrap_or_default();
+    for r in &readings {
+        let (t, up, down) = (r.timestamp, field(r.up_m), field(r.down_m));
+        let _ = writeln!(text, "{t:.6},{up},{down}");
+    }
+    write_file(&out.join("ranges.csv"), &text)?;
+    Ok(readings.len())
+}
+
+fn write_file(path: &Path, text: &str) -> anyhow::Result<()> {
+    std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))
 }
