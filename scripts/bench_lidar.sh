@@ -1,0 +1,58 @@
+#!/usr/bin/env bash
+# Side-by-side benchmark of 2D lidar SLAM: slamkit's ICP-SLAM and MRPT's icp-slam (Debian package
+# mrpt-apps, run through ../shared/tools/mrpt/run-mrpt.sh) on the Freiburg benchmark logs, both
+# scored with `slamkit eval relations`; wall time and peak memory from /usr/bin/time.
+# usage: scripts/bench_lidar.sh [OUTDIR]     (needs SLAMKIT_DATA; installs mrpt-apps if missing)
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+data=${SLAMKIT_DATA:?set SLAMKIT_DATA to the data folder}
+mrpt_tools=${MRPT_TOOLS:-$root/../shared/tools/mrpt}
+out=${1:-$root/out/bench-lidar}
+mkdir -p "$out"
+
+if ! command -v icp-slam >/dev/null; then
+  (apt-get update -qq && apt-get install -y -qq mrpt-apps time) >/dev/null
+fi
+python3 -c 'import numpy' 2>/dev/null || pip install -q numpy
+cargo build --release -q -p slamkit --manifest-path "$root/Cargo.toml"
+slamkit=$root/target/release/slamkit
+
+# name | log | relations | MRPT converter flags (from tools/mrpt/README.md)
+runs=(
+  "intel|lidar2d/intel/intel.fromrosbag.clf.gz|lidar2d/intel/intel.relations|--odom file-order --max-range 81.0 --aperture-deg 179 --sensor-yaw-deg -0.5"
+  "aces|lidar2d/aces/aces.fromrosbag.clf.gz|lidar2d/aces/aces.relations|--odom interp --max-range 49.95 --aperture-deg 179 --sensor-yaw-deg -0.5"
+  "mit-csail|lidar2d/mit-csail/mit-csail.clf|lidar2d/mit-csail/mit-csail.relations|--max-range 81.0"
+)
+
+# "t x y theta" -> TUM
+to_tum() { awk '{printf "%s %s %s 0 0 0 %.12f %.12f\n", $1, $2, $3, sin($4/2), cos($4/2)}' "$1" > "$2"; }
+score() { "$slamkit" eval relations --relations "$1" --est "$2" --json; }
+field() { python3 -c "import json,sys; d=json.loads(sys.argv[1]); print(f\"{d['trans_mean']:.4f} ± {d['trans_std']:.4f} m\")" "$1"; }
+timing() { python3 - "$1" <<'PY'
+import re, sys
+t = open(sys.argv[1]).read()
+wall = re.search(r"Elapsed \(wall clock\) time.*: (?:(\d+):)?(\d+):([\d.]+)", t)
+h, m, s = wall.groups()
+secs = int(h or 0) * 3600 + int(m) * 60 + float(s)
+mib = int(re.search(r"Maximum resident set size \(kbytes\): (\d+)", t).group(1)) / 1024
+print(f"{secs:.1f} s|{mib:.0f} MiB")
+PY
+}
+
+echo "| log | slamkit icp | wall | peak | MRPT icp-slam | wall | peak | wall ratio slamkit/MRPT |"
+echo "|---|---|---|---|---|---|---|---|"
+for run in "${runs[@]}"; do
+  IFS='|' read -r name log rel flags <<<"$run"
+  d=$out/$name
+  /usr/bin/time -v -o "$d.slamkit.time" "$slamkit" lidar "$data/$log" --relations "$data/$rel" \
+    --out "$d/slamkit" >/dev/null 2>&1
+  s_err=$(field "$(score "$data/$rel" "$d/slamkit/trajectory.tum")")
+  IFS='|' read -r s_wall s_mem <<<"$(timing "$d.slamkit.time")"
+  # shellcheck disable=SC2086
+  "$mrpt_tools/run-mrpt.sh" icp "$data/$log" "$d/mrpt" $flags >/dev/null 2>&1
+  to_tum "$d/mrpt/trajectory.txt" "$d/mrpt/trajectory.tum"
+  m_err=$(field "$(score "$data/$rel" "$d/mrpt/trajectory.tum")")
+  IFS='|' read -r m_wall m_mem <<<"$(timing "$d/mrpt/time.txt")"
+  ratio=$(python3 -c "print(f'{${s_wall% s}/${m_wall% s}:.2f}')")
+  echo "| $name | $s_err | $s_wall | $s_mem | $m_err | $m_wall | $m_mem | $ratio |"
+done
