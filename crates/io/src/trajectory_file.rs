@@ -102,12 +102,12 @@ pub(crate) fn pose_from_matrix(m: &Matrix3x4<f64>) -> Result<Pose3, String> {
     let (Some(u), Some(v_t)) = (svd.u, svd.v_t) else {
         return Err("rotation SVD failed".into());
     };
-    let worst = svd
+    // A NaN distance (SVD overflow on huge entries, found by fuzzing) counts as too far.
+    let far_from_rotation = svd
         .singular_values
         .iter()
-        .map(|s| (s - 1.0).abs())
-        .fold(0.0, f64::max);
-    if worst > MAX_SINGULAR_VALUE_ERROR || r.determinant() <= 0.0 {
+        .any(|s| (s - 1.0).abs().is_nan() || (s - 1.0).abs() > MAX_SINGULAR_VALUE_ERROR);
+    if far_from_rotation || r.determinant().is_nan() || r.determinant() <= 0.0 {
         return Err(format!(
             "not a rotation matrix (singular values {:?}, det {:.4})",
             svd.singular_values.as_slice(),
@@ -115,6 +115,9 @@ pub(crate) fn pose_from_matrix(m: &Matrix3x4<f64>) -> Result<Pose3, String> {
         ));
     }
     let rotation = Rotation3::from_matrix_unchecked(u * v_t);
+    if rotation.matrix().iter().any(|v| !v.is_finite()) {
+        return Err("rotation is not finite after re-orthonormalisation".into());
+    }
     let t = m.column(3);
     Ok(Pose3::from_parts(
         Translation3::new(t[0], t[1], t[2]),
@@ -388,6 +391,15 @@ mod tests {
     use nalgebra::Vector3;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
+
+    /// Found by the `tum` fuzz target: a huge entry made the SVD's singular values NaN, which
+    /// slipped past the "close to a rotation" check and gave a NaN quaternion.
+    #[test]
+    fn kitti_line_with_huge_entry_is_rejected() {
+        let text =
+            "0114036608.669 1e308 0.6305 1.6380 0.6132 0.5962 -0.3 1.6380 0.6132 0.5962 -01 -0\n";
+        assert!(parse_trajectory(text).is_err());
+    }
 
     fn random_trajectory(seed: u64, n: usize) -> Trajectory {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
