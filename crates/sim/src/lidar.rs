@@ -128,16 +128,21 @@ impl Lidar2dConfig {
     }
 
     /// One reading from the true distance: noise, dropout, range limits, rounding.
+    ///
+    /// A dropout (a beam that hit something but returned nothing usable) reads 0, the invalid
+    /// reading of real scanners; only a beam with nothing within range reads the maximum range
+    /// ("no return"), which mappers use to clear free space.
     fn measure(&self, truth: Option<f64>, rng: &mut ChaCha8Rng) -> f64 {
         let noise: f64 = rng.sample(StandardNormal);
         let dropped = rng.gen_bool(self.dropout_probability);
         match truth {
             Some(r) if r < self.min_range_m => 0.0,
-            Some(r) if !dropped => {
+            Some(_) if dropped => 0.0,
+            Some(r) => {
                 let noisy = quantise(r + self.range_sigma_m * noise, self.resolution_m);
                 noisy.clamp(self.min_range_m, self.max_range_m)
             }
-            _ => self.max_range_m,
+            None => self.max_range_m,
         }
     }
 }
@@ -207,7 +212,7 @@ mod tests {
                     continue;
                 };
                 hits += 1;
-                if *measured == config.max_range_m {
+                if *measured == 0.0 {
                     dropouts += 1;
                 } else {
                     errors.push(measured - t);
