@@ -32,7 +32,7 @@ pub fn progress_bar(len: u64, what: &str) -> ProgressBar {
     bar
 }
 
-/// Peak resident memory of this process [bytes] (VmHWM from /proc), when the OS tells it.
+/// Peak resident memory of this process in bytes (VmHWM from /proc), when the OS tells it.
 pub fn peak_rss_bytes() -> Option<u64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
     let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;

@@ -21,15 +21,15 @@ use slamkit_core::Pose2;
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct CorrelativeConfig {
-    /// Half-width of the translation window around the guess, in x and y [m].
+    /// Half-width of the translation window around the guess, in x and y \[m\].
     pub linear_window_m: f64,
-    /// Half-width of the rotation window around the guess [rad].
+    /// Half-width of the rotation window around the guess \[rad\].
     pub angular_window_rad: f64,
-    /// Cell size of the likelihood field and translation step [m].
+    /// Cell size of the likelihood field and translation step \[m\].
     pub resolution_m: f64,
-    /// Standard deviation of the likelihood field around each target point [m].
+    /// Standard deviation of the likelihood field around each target point \[m\].
     pub sigma_m: f64,
-    /// Largest rotation step [rad]; the step is smaller when the scan reaches farther.
+    /// Largest rotation step \[rad\]; the step is smaller when the scan reaches farther.
     pub max_angular_step_rad: f64,
     /// Side of the translation blocks bounded together, in cells (>= 1).
     pub coarse_cells: usize,
@@ -56,7 +56,7 @@ impl Default for CorrelativeConfig {
 pub struct CorrelativeResult {
     /// The pose of the source in the target frame.
     pub target_from_source: Pose2,
-    /// Mean likelihood of the moved source points, in [0, 1].
+    /// Mean likelihood of the moved source points, in \[0, 1\].
     pub score: f64,
 }
 

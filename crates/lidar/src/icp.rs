@@ -10,7 +10,7 @@
 //!
 //! The pose increment is applied on the left, in the target frame:
 //! `target_from_source ← exp(δ) · target_from_source`, so for a transformed point `q` the
-//! Jacobian of `q` with respect to `δ = (δx, δy, δθ)` is `[I | (−q_y, q_x)ᵀ]`.
+//! Jacobian of `q` with respect to `δ = (δx, δy, δθ)` is `\[I | (−q_y, q_x)ᵀ\]`.
 
 use crate::nn::PointIndex;
 use crate::LidarError;
@@ -62,7 +62,7 @@ pub struct IcpConfig {
     pub metric: IcpMetric,
     /// Robust kernel on residuals.
     pub kernel: RobustKernel,
-    /// Scale of the robust kernel at the smallest correspondence threshold [m]; while the
+    /// Scale of the robust kernel at the smallest correspondence threshold \[m\]; while the
     /// threshold is wider the scale grows in proportion, so the kernel never rejects the pairs
     /// the threshold admits.
     pub kernel_scale_m: f64,
@@ -73,16 +73,16 @@ pub struct IcpConfig {
     /// Upper limit on iterations at one threshold: correspondences that flip between two
     /// neighbours can keep the pose dithering, and must not keep a wide threshold forever.
     pub max_iterations_per_threshold: u32,
-    /// Initial correspondence distance threshold [m] (MRPT `thresholdDist`).
+    /// Initial correspondence distance threshold \[m\] (MRPT `thresholdDist`).
     pub max_correspondence_dist_m: f64,
-    /// Smallest the threshold may shrink to [m] (MRPT `smallestThresholdDist`); it is also the
+    /// Smallest the threshold may shrink to \[m\] (MRPT `smallestThresholdDist`); it is also the
     /// distance within which a point counts as matched in the goodness score.
     pub min_correspondence_dist_m: f64,
     /// Factor applied to the threshold each time the pose converges (MRPT `ALFA`), in (0, 1].
     pub dist_shrink_factor: f64,
-    /// A step with translation below this counts as converged [m].
+    /// A step with translation below this counts as converged \[m\].
     pub min_step_trans_m: f64,
-    /// A step with rotation below this counts as converged [rad].
+    /// A step with rotation below this counts as converged \[rad\].
     pub min_step_rot_rad: f64,
     /// Fewer correspondences than this is an error.
     pub min_correspondences: usize,
@@ -164,7 +164,7 @@ pub struct IcpResult {
     pub converged: bool,
     /// Correspondences used in the last iteration.
     pub correspondences: usize,
-    /// Root mean square residual of the last iteration's correspondences [m].
+    /// Root mean square residual of the last iteration's correspondences \[m\].
     pub rms_residual_m: f64,
 }
 

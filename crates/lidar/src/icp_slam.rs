@@ -30,29 +30,29 @@ pub struct IcpSlamConfig {
     pub correlative: CorrelativeConfig,
     /// Use the correlative search as a fallback.
     pub correlative_fallback: bool,
-    /// Beams shorter than this are dropped [m].
+    /// Beams shorter than this are dropped \[m\].
     pub min_range_m: f64,
-    /// Beams at or beyond this are dropped (long ranges are noisy and sparse) [m].
+    /// Beams at or beyond this are dropped (long ranges are noisy and sparse) \[m\].
     pub max_range_m: f64,
-    /// Voxel size for thinning the scan before matching [m]; 0 keeps every point.
+    /// Voxel size for thinning the scan before matching \[m\]; 0 keeps every point.
     pub scan_voxel_m: f64,
-    /// Voxel size of the point map [m].
+    /// Voxel size of the point map \[m\].
     pub map_voxel_m: f64,
     /// Keyframes in the map: the most recent N; 0 keeps every keyframe (a global map).
     pub map_keyframes: usize,
-    /// Insert a keyframe after moving this far since the last one [m] (MRPT
+    /// Insert a keyframe after moving this far since the last one \[m\] (MRPT
     /// `insertionLinDistance`).
     pub insertion_linear_m: f64,
-    /// Insert a keyframe after turning this much since the last one [rad] (MRPT
+    /// Insert a keyframe after turning this much since the last one \[rad\] (MRPT
     /// `insertionAngDistance`).
     pub insertion_angular_rad: f64,
-    /// Alignments below this goodness are not accepted (MRPT `minICPgoodnessToAccept`), in [0, 1].
+    /// Alignments below this goodness are not accepted (MRPT `minICPgoodnessToAccept`), in \[0, 1\].
     pub min_goodness: f64,
     /// Scans with fewer usable points are skipped.
     pub min_scan_points: usize,
     /// Neighbours used to estimate each point's normal.
     pub normal_neighbours: usize,
-    /// Neighbours farther than this do not count for normals [m].
+    /// Neighbours farther than this do not count for normals \[m\].
     pub normal_radius_m: f64,
     /// Largest ratio of the small to the large eigenvalue for a neighbourhood to have a normal.
     pub normal_max_flatness: f64,

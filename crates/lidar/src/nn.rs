@@ -20,7 +20,7 @@ pub struct PointIndex {
 pub struct Neighbour {
     /// Index of the point in the index.
     pub index: usize,
-    /// Euclidean distance to the query [m].
+    /// Euclidean distance to the query \[m\].
     pub distance_m: f64,
 }
 

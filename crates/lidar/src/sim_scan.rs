@@ -7,7 +7,7 @@ use slamkit_core::{LaserScan, Pose2};
 /// A 2D world made of wall segments.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SegmentWorld {
-    /// Wall segments, end points in the world frame [m].
+    /// Wall segments, end points in the world frame \[m\].
     pub segments: Vec<(Point2<f64>, Point2<f64>)>,
 }
 

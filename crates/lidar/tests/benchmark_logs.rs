@@ -22,7 +22,7 @@ fn data_dir(test: &str) -> Option<PathBuf> {
     }
 }
 
-/// Runs ICP-SLAM with the default configuration and returns the mean translational error [m].
+/// Runs ICP-SLAM with the default configuration and returns the mean translational error \[m\].
 fn relations_mean_error(dir: PathBuf, log: &str, relations: &str) -> f64 {
     let scans = slamkit_io::carmen::read_carmen(&dir.join(log))
         .unwrap()

@@ -36,7 +36,7 @@ pub struct Lidar2dConfig {
     pub resolution_m: f64,
     /// Scans per second \[Hz\].
     pub rate_hz: f64,
-    /// Position of the lidar on the robot base `[x, y, z]` \[m\] (axes aligned with the base).
+    /// Position of the lidar on the robot base `\[x, y, z\]` \[m\] (axes aligned with the base).
     pub mount_xyz_m: [f64; 3],
 }
 

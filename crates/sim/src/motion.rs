@@ -93,7 +93,7 @@ pub struct RobotState {
     pub yaw_rate_radps: f64,
 }
 
-/// One stretch between two waypoint states `[x, y, z, yaw]`.
+/// One stretch between two waypoint states `\[x, y, z, yaw\]`.
 #[derive(Debug, Clone, Copy)]
 struct Segment {
     start_s: f64,
@@ -112,7 +112,7 @@ pub struct WaypointMotion {
 }
 
 impl WaypointMotion {
-    /// A drone flying through `waypoints` `[x, y, z, yaw]` \[m, rad\], hovering at each.
+    /// A drone flying through `waypoints` `\[x, y, z, yaw\]` \[m, rad\], hovering at each.
     pub fn drone(waypoints: &[[f64; 4]], config: &DroneConfig) -> Result<Self, SimError> {
         let limits = [
             config.horizontal_speed_mps,
@@ -138,7 +138,7 @@ impl WaypointMotion {
         })
     }
 
-    /// A differential-drive robot driving through `waypoints` `[x, y]` \[m\], starting at the
+    /// A differential-drive robot driving through `waypoints` `\[x, y\]` \[m\], starting at the
     /// first and facing the second.
     pub fn diff_drive(waypoints: &[[f64; 2]], config: &DiffDriveConfig) -> Result<Self, SimError> {
         let limits = [config.speed_mps, config.turn_rate_radps];
@@ -171,7 +171,7 @@ impl WaypointMotion {
             .map_or(0.0, |s| s.start_s + s.duration_s)
     }
 
-    /// The true state at time `t` (clamped to `[0, duration]`).
+    /// The true state at time `t` (clamped to `\[0, duration\]`).
     pub fn state_at(&self, t: f64) -> RobotState {
         let t = t.clamp(0.0, self.duration_s());
         let i = self

@@ -186,7 +186,7 @@ impl Scene {
         })
     }
 
-    /// Colour of the surface at a hit, each channel in `[0, 1]`: the texture's albedo with
+    /// Colour of the surface at a hit, each channel in `\[0, 1\]`: the texture's albedo with
     /// Lambertian shading (ambient 0.55, diffuse 0.45).
     pub fn shade(&self, hit: &Hit) -> [f32; 3] {
         let (u, v) = surface_uv(hit, &self.solids, &self.textures);
@@ -201,7 +201,7 @@ impl Scene {
 }
 
 /// A vertical prism over a rotated rectangle (`half` sizes along its own x and y); with
-/// `sloped`, the top face slopes up along x from `z_m[0]` to `z_m[1]` instead of being flat.
+/// `sloped`, the top face slopes up along x from `z_m\[0\]` to `z_m\[1\]` instead of being flat.
 fn prism(
     center: Vector2<f64>,
     half: [f64; 2],
@@ -281,7 +281,7 @@ fn room_exit(
     best
 }
 
-/// Slab test: does the ray meet the box for some `t` in `[0, limit]`?
+/// Slab test: does the ray meet the box for some `t` in `\[0, limit\]`?
 fn slab_overlaps(b: &Aabb, o: &Vector3<f64>, inv: &Vector3<f64>, limit: f64) -> bool {
     let (mut t0, mut t1) = (0.0f64, limit);
     for a in 0..3 {

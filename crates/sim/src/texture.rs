@@ -12,7 +12,7 @@ use serde::{Deserialize, Serialize};
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Pattern {
-    /// One colour, `colors[0]`.
+    /// One colour, `colors\[0\]`.
     Solid,
     /// Squares of side `scale_m` alternating between the two colours.
     Checker,
@@ -93,7 +93,7 @@ impl Texture {
         }
     }
 
-    /// Albedo at surface coordinates `(u, v)` \[m\], each channel in `[0, 1]`.
+    /// Albedo at surface coordinates `(u, v)` \[m\], each channel in `\[0, 1\]`.
     pub fn albedo(&self, u: f64, v: f64) -> [f32; 3] {
         let scale = if self.scale_m > 0.0 {
             self.scale_m
@@ -116,7 +116,7 @@ impl Texture {
     }
 }
 
-/// Blob mask in `[0, 1]`: thresholded two-octave value noise, plus a faint fine speckle.
+/// Blob mask in `\[0, 1\]`: thresholded two-octave value noise, plus a faint fine speckle.
 fn blobs(u: f64, v: f64, seed: u64) -> f64 {
     let coarse = value_noise(u, v, seed) * 0.7 + value_noise(2.3 * u, 2.3 * v, seed ^ 0x9e37) * 0.3;
     let edge = ((coarse - 0.5) * 12.0).clamp(-1.0, 1.0) * 0.5 + 0.5;
@@ -124,7 +124,7 @@ fn blobs(u: f64, v: f64, seed: u64) -> f64 {
     (edge + 0.15 * speckle).clamp(0.0, 1.0)
 }
 
-/// Smoothly interpolated lattice noise in `[0, 1]`.
+/// Smoothly interpolated lattice noise in `\[0, 1\]`.
 fn value_noise(u: f64, v: f64, seed: u64) -> f64 {
     let (fu, fv) = (u.floor(), v.floor());
     let (iu, iv) = (fu as i64, fv as i64);

@@ -2,7 +2,7 @@
 //! cylinders and ramps, each with a height range so a drone can fly over or under it.
 //!
 //! The world frame has its origin at a floor corner of the room, x and y along the walls and z
-//! up; the room spans `[0, size_m[0]] × [0, size_m[1]] × [0, height_m]`. Every surface carries
+//! up; the room spans `[0, size_m\[0\]] × [0, size_m\[1\]] × \[0, height_m\]`. Every surface carries
 //! a procedural [`Texture`] so that camera images have features to track. Each world also names
 //! a default drone flight (waypoints `x y z yaw`), a ground-robot drive (`x y`) and a 2D
 //! navigation goal.
@@ -38,11 +38,11 @@ pub struct World {
     /// Texture of the four room walls.
     #[serde(default = "Texture::room_wall")]
     pub wall_texture: Texture,
-    /// Default drone flight: waypoints `[x, y, z, yaw]` \[m, m, m, rad\].
+    /// Default drone flight: waypoints `\[x, y, z, yaw\]` \[m, m, m, rad\].
     pub flight_path: Vec<[f64; 4]>,
-    /// Default ground-robot drive: waypoints `[x, y]` \[m\] (obstacle-free at floor level).
+    /// Default ground-robot drive: waypoints `\[x, y\]` \[m\] (obstacle-free at floor level).
     pub drive_path: Vec<[f64; 2]>,
-    /// Default navigation goal `[x, y]` \[m\].
+    /// Default navigation goal `\[x, y\]` \[m\].
     pub nav_goal: [f64; 2],
     /// Walls inside the room.
     #[serde(default)]
@@ -62,14 +62,14 @@ pub struct World {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Wall {
-    /// One end of the wall's centre line `[x, y]` \[m\].
+    /// One end of the wall's centre line `\[x, y\]` \[m\].
     pub from: [f64; 2],
-    /// The other end `[x, y]` \[m\].
+    /// The other end `\[x, y\]` \[m\].
     pub to: [f64; 2],
     /// Thickness \[m\].
     #[serde(default = "default_wall_thickness")]
     pub thickness_m: f64,
-    /// Bottom and top heights `[z_min, z_max]` \[m\].
+    /// Bottom and top heights `\[z_min, z_max\]` \[m\].
     pub z_m: [f64; 2],
     /// Surface texture (hash-noise blobs when omitted).
     #[serde(default)]
@@ -80,14 +80,14 @@ pub struct Wall {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct BoxObstacle {
-    /// Centre of the footprint `[x, y]` \[m\].
+    /// Centre of the footprint `\[x, y\]` \[m\].
     pub center: [f64; 2],
     /// Footprint size `[length along its x, width along its y]` \[m\].
     pub size_m: [f64; 2],
     /// Rotation about z \[rad\].
     #[serde(default)]
     pub yaw_rad: f64,
-    /// Bottom and top heights `[z_min, z_max]` \[m\] (a table top: `[0.7, 0.75]`).
+    /// Bottom and top heights `\[z_min, z_max\]` \[m\] (a table top: `\[0.7, 0.75\]`).
     pub z_m: [f64; 2],
     /// Surface texture (hash-noise blobs when omitted).
     #[serde(default)]
@@ -98,30 +98,30 @@ pub struct BoxObstacle {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Cylinder {
-    /// Axis position `[x, y]` \[m\].
+    /// Axis position `\[x, y\]` \[m\].
     pub center: [f64; 2],
     /// Radius \[m\].
     pub radius_m: f64,
-    /// Bottom and top heights `[z_min, z_max]` \[m\].
+    /// Bottom and top heights `\[z_min, z_max\]` \[m\].
     pub z_m: [f64; 2],
     /// Surface texture (hash-noise blobs when omitted).
     #[serde(default)]
     pub texture: Option<Texture>,
 }
 
-/// A wedge whose top rises along its own x axis from `z_m[0]` at the low end to `z_m[1]` at
-/// the high end; its bottom is flat at `z_m[0]`.
+/// A wedge whose top rises along its own x axis from `z_m\[0\]` at the low end to `z_m\[1\]` at
+/// the high end; its bottom is flat at `z_m\[0\]`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Ramp {
-    /// Centre of the footprint `[x, y]` \[m\].
+    /// Centre of the footprint `\[x, y\]` \[m\].
     pub center: [f64; 2],
     /// Footprint `[length along the slope, width]` \[m\].
     pub size_m: [f64; 2],
     /// Direction of the rise, about z \[rad\].
     #[serde(default)]
     pub yaw_rad: f64,
-    /// Bottom height and height of the high end `[z_min, z_max]` \[m\].
+    /// Bottom height and height of the high end `\[z_min, z_max\]` \[m\].
     pub z_m: [f64; 2],
     /// Surface texture (hash-noise blobs when omitted).
     #[serde(default)]

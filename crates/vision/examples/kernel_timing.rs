@@ -1,7 +1,7 @@
 //! Times slamkit's front-end kernels on the given images and prints one JSON object with the
 //! median milliseconds per kernel (used by `scripts/bench_vision_vs_opencv.py`).
 //!
-//! Usage: `kernel_timing [--reps N] IMAGE...` — images in sequence order; KLT tracks each
+//! Usage: `kernel_timing \[--reps N\] IMAGE...` — images in sequence order; KLT tracks each
 //! image's Shi–Tomasi corners into the next image, forward and backward.
 
 use std::path::Path;

@@ -1,5 +1,5 @@
 //! Shi–Tomasi "good features to track" (J. Shi and C. Tomasi, CVPR 1994): the score of a pixel
-//! is the smaller eigenvalue of the structure tensor `Σ [gx² gxgy; gxgy gy²]` summed over a 3×3
+//! is the smaller eigenvalue of the structure tensor `Σ \[gx² gxgy; gxgy gy²\]` summed over a 3×3
 //! window of 3×3 Sobel gradients, as OpenCV's `cornerMinEigenVal(blockSize=3, ksize=3)`.
 //! Corners are the 3×3 local maxima above `quality_level × best score`, taken strongest first
 //! and kept at least `min_distance_px` apart (OpenCV's `goodFeaturesToTrack`). On top of that,

@@ -107,7 +107,7 @@ pub fn fast9(img: &GrayImage, threshold: u8, border: usize, nonmax: bool) -> Vec
     corners
 }
 
-/// Row-wise compass test: `mask[i]` when both opposite pairs (below/above, right/left) have a
+/// Row-wise compass test: `mask\[i\]` when both opposite pairs (below/above, right/left) have a
 /// pixel brighter than `v + t`, or both have one darker than `v − t`.
 fn prefilter(centre: &[u8], [dn, up, right, left]: [&[u8]; 4], t: u8, mask: &mut [bool]) {
     let it = centre.iter().zip(dn).zip(up).zip(right).zip(left);

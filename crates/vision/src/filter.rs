@@ -4,7 +4,7 @@
 //! Each filter runs as two 1-D passes over row slices (horizontal into a `u16`/`i16` buffer,
 //! then vertical), so the inner loops are straight multiply–adds the compiler vectorises.
 //! Gaussian weights follow OpenCV's `getGaussianKernel`; Scharr's 3×3 kernel is
-//! `[3 10 3]ᵀ·[-1 0 1]` (H. Scharr, "Optimale Operatoren in der digitalen Bildverarbeitung",
+//! `\[3 10 3\]ᵀ·\[-1 0 1\]` (H. Scharr, "Optimale Operatoren in der digitalen Bildverarbeitung",
 //! 2000).
 
 use slamkit_core::image::{GrayImage, Image};
@@ -113,7 +113,7 @@ pub fn scharr(img: &GrayImage) -> Gradients {
     gradients_3x3(img, [3, 10])
 }
 
-/// Derivative `[-1 0 1]` along one axis, smoothing `[s0 s1 s0]` along the other.
+/// Derivative `\[-1 0 1\]` along one axis, smoothing `\[s0 s1 s0\]` along the other.
 fn gradients_3x3(img: &GrayImage, [s0, s1]: [i16; 2]) -> Gradients {
     let (w, h) = (img.width(), img.height());
     let mut gx = vec![0i16; w * h];

@@ -28,7 +28,7 @@ impl Default for MatchConfig {
     }
 }
 
-/// A match between `query[query_idx]` and `train[train_idx]`.
+/// A match between `query\[query_idx\]` and `train\[train_idx\]`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct DescriptorMatch {
     /// Index into the query descriptors.

@@ -8,7 +8,7 @@
 //!    best `n` by Harris response (7×7 block, k = 0.04);
 //! 4. orientation from the intensity centroid of the radius-15 disc (P. Rosin, 1999);
 //! 5. a 256-bit rotated-BRIEF descriptor on the level image blurred by a 7×7, σ = 2 Gaussian,
-//!    using the learned pattern of [`crate::orb_pattern`].
+//!    using the learned pattern in the `orb_pattern` module.
 //!
 //! Keypoint positions are reported in level-0 pixels.
 
@@ -75,7 +75,7 @@ pub struct Keypoint {
 pub struct OrbFeatures {
     /// Keypoints.
     pub keypoints: Vec<Keypoint>,
-    /// Descriptors, `descriptors[i]` for `keypoints[i]`.
+    /// Descriptors, `descriptors\[i\]` for `keypoints\[i\]`.
     pub descriptors: Vec<Descriptor>,
 }
 

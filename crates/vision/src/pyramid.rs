@@ -1,4 +1,4 @@
-//! Image pyramids: OpenCV's `pyrDown` (5-tap binomial `[1 4 6 4 1]/16` per axis, then drop every
+//! Image pyramids: OpenCV's `pyrDown` (5-tap binomial `\[1 4 6 4 1\]/16` per axis, then drop every
 //! other row and column; P. Burt and E. Adelson, "The Laplacian pyramid as a compact image
 //! code", 1983) for KLT, and a bilinear resize (OpenCV `INTER_LINEAR` pixel-centre convention)
 //! for ORB's non-dyadic scale pyramid.

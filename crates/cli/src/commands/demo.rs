@@ -131,7 +131,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
 }
 
 /// Horizontal position error of each estimated pose against the ground truth pose at the same
-/// index (both sampled at the scan times) [m].
+/// index (both sampled at the scan times) (m).
 fn position_errors_m(estimate: &Trajectory, truth: &Trajectory) -> Vec<f64> {
     estimate
         .poses

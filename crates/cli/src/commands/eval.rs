@@ -43,7 +43,7 @@ pub struct PairArgs {
     /// Estimated trajectory (TUM, KITTI or EuRoC CSV).
     #[arg(long)]
     pub est: PathBuf,
-    /// Largest time difference for pairing poses by timestamp [s] (evo's --t_max_diff).
+    /// Largest time difference for pairing poses by timestamp in seconds (evo's --t_max_diff).
     #[arg(long, default_value_t = DEFAULT_MAX_DIFF_S)]
     pub max_diff: f64,
     /// Print one JSON object instead of a table.
@@ -125,7 +125,7 @@ fn run_ate(args: &AteArgs) -> anyhow::Result<()> {
         };
         let series = ErrorSeries {
             title: &title,
-            label: "ATE [m]",
+            label: "ATE (m)",
             timestamps: &result.timestamps,
             errors: &result.errors_m,
         };
@@ -160,7 +160,7 @@ fn run_rpe(args: &RpeArgs) -> anyhow::Result<()> {
         };
         let series = ErrorSeries {
             title: &title,
-            label: "RPE [m]",
+            label: "RPE (m)",
             timestamps: &result.timestamps,
             errors: &result.errors_m,
         };

@@ -9,7 +9,7 @@ pub struct NavArgs {
     /// World: `small`, `large`, `office`, or a TOML world file.
     #[arg(long)]
     pub world: String,
-    /// Goal `X,Y` [m]; the world's built-in goal when omitted.
+    /// Goal `X,Y` (m); the world's built-in goal when omitted.
     #[arg(long, allow_hyphen_values = true)]
     pub goal: Option<String>,
     /// Seed of every random choice.

@@ -18,10 +18,10 @@ pub struct PlanArgs {
     /// Map in ROS map_server format (YAML next to its PGM).
     #[arg(long)]
     pub map: PathBuf,
-    /// Start position in map coordinates, `X,Y` [m].
+    /// Start position in map coordinates, `X,Y` (m).
     #[arg(long, allow_hyphen_values = true)]
     pub start: String,
-    /// Goal position in map coordinates, `X,Y` [m].
+    /// Goal position in map coordinates, `X,Y` (m).
     #[arg(long, allow_hyphen_values = true)]
     pub goal: String,
     /// Planner.
