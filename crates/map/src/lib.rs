@@ -5,6 +5,8 @@
 //! * [`likelihood_field`]: Euclidean distance transform and the likelihood-field sensor model
 //!   that scores a scan against a map (particle-filter SLAM, Monte Carlo localisation).
 //! * [`grid_io`]: ROS `map_server` maps (PGM + YAML) and PNG images, both ways.
+//! * [`octree`]: 3D occupancy octree with OctoMap's semantics and `.bt` export.
+//! * [`tri_grid`]: dense tri-state grids for planners, and inflation by the robot's radius.
 //!
 //! Frames: the grid lives in the world frame (x, y in metres, cell (0, 0) at the grid origin);
 //! scans are inserted with the laser's pose `world_from_laser`.
@@ -14,8 +16,10 @@ pub mod error;
 pub mod grid_io;
 pub mod likelihood_field;
 pub mod occupancy_grid;
+pub mod octree;
 pub mod raycast;
 mod tiles;
+pub mod tri_grid;
 
 #[cfg(test)]
 mod test_room;
@@ -27,4 +31,6 @@ pub use occupancy_grid::{
     shared_tile_stats, CellBounds, CellIndex, InsertStats, Occupancy, OccupancyGrid,
     OccupancyGridConfig, TileStats,
 };
+pub use octree::{Octree, OctreeConfig, OctreeInsertStats, OctreeLeaf, OctreeStats};
 pub use tiles::TILE_SIZE;
+pub use tri_grid::TriGrid;
