@@ -1,11 +1,14 @@
 //! Times slamkit's front-end kernels on the given images and prints one JSON object with the
-//! median milliseconds per kernel (used by `scripts/bench_vision_vs_opencv.py`).
+//! median milliseconds per kernel (used by `scripts/bench_vision_vs_opencv.py`). Times are the
+//! calling thread's CPU time, as the script measures OpenCV's, so that other processes on a
+//! shared machine do not inflate either side.
 //!
 //! Usage: `kernel_timing \[--reps N\] IMAGE...` — images in sequence order; KLT tracks each
 //! image's Shi–Tomasi corners into the next image, forward and backward.
 
 use std::path::Path;
-use std::time::Instant;
+
+use cpu_time::ThreadTime;
 
 use slamkit_vision::clahe::{Clahe, ClaheConfig};
 use slamkit_vision::color::rgb_to_gray;
@@ -14,11 +17,11 @@ use slamkit_vision::klt::{track, KltConfig, KltPyramid};
 use slamkit_vision::orb::{Orb, OrbConfig};
 use slamkit_vision::{GrayImage, RgbImage};
 
-/// Median wall time of `reps` runs of `f` \[ms\].
+/// Median thread CPU time of `reps` runs of `f` \[ms\].
 fn median_ms<T>(reps: usize, mut f: impl FnMut() -> T) -> f64 {
     let mut t: Vec<f64> = (0..reps)
         .map(|_| {
-            let s = Instant::now();
+            let s = ThreadTime::now();
             std::hint::black_box(f());
             s.elapsed().as_secs_f64() * 1e3
         })

@@ -18,6 +18,7 @@ use slamkit_core::image::{GrayImage, RgbImage};
 use crate::border::reflect101;
 use crate::color::{image_like, lab_planes_to_rgb, rgb_to_lab_planes};
 use crate::error::VisionError;
+use crate::round::round_to_u8;
 
 /// CLAHE parameters (`cv::createCLAHE(clipLimit, tileGridSize)`).
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -150,7 +151,7 @@ impl Clahe {
                 let mut sum = 0u32;
                 for (l, &c) in lut.iter_mut().zip(hh.iter()) {
                     sum += c;
-                    *l = round_f32_to_u8(sum as f32 * lut_scale);
+                    *l = round_to_u8(sum as f32 * lut_scale);
                 }
             }
         }
@@ -180,12 +181,6 @@ fn clip_histogram(hist: &mut [u32; BINS], limit: u32) {
             residual -= 1;
         }
     }
-}
-
-/// `saturate_cast<uchar>(float)`: round half to even, clamp.
-#[inline]
-fn round_f32_to_u8(v: f32) -> u8 {
-    v.round_ties_even().clamp(0.0, 255.0) as u8
 }
 
 /// Per-column tile indices and weights of the bilinear blend (OpenCV's float formula).
@@ -244,7 +239,7 @@ fn interpolate(
             let xa1 = 1.0 - xa;
             let top = f32::from(p1[a1]) * xa1 + f32::from(p1[a2]) * xa;
             let bottom = f32::from(p2[a1]) * xa1 + f32::from(p2[a2]) * xa;
-            *d = round_f32_to_u8(top * ya1 + bottom * ya);
+            *d = round_to_u8(top * ya1 + bottom * ya);
         }
     }
 }
@@ -289,7 +284,7 @@ mod tests {
         h[100] = 64;
         clip_histogram(&mut h, clip);
         let cdf: u32 = h[..=100].iter().sum();
-        let want = round_f32_to_u8(cdf as f32 * (255.0 / 64.0));
+        let want = round_to_u8(cdf as f32 * (255.0 / 64.0));
         assert!(out.data().iter().all(|&v| v == want), "want {want}");
     }
 

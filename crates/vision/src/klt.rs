@@ -61,13 +61,17 @@ pub struct Track {
     pub fb_error_px: f32,
 }
 
-/// One level of a tracking pyramid: the image and its Scharr gradients scaled to grey/px.
+/// One level of a tracking pyramid: the image and its raw Scharr gradients (32× grey/px),
+/// kept in 8 and 16 bits so that a window's rows stay few cache lines.
 #[derive(Debug, Clone)]
 struct Level {
-    img: Image<f32>,
-    gx: Image<f32>,
-    gy: Image<f32>,
+    img: GrayImage,
+    gx: Image<i16>,
+    gy: Image<i16>,
 }
+
+/// Scharr's gain: its 3×3 kernel returns 32× the intensity slope.
+const SCHARR_GAIN: f32 = 32.0;
 
 /// An image prepared for tracking: its `pyrDown` pyramid with gradients. Build it once per
 /// frame and use it both as "previous" and "next".
@@ -85,11 +89,10 @@ impl KltPyramid {
             .iter()
             .map(|l| {
                 let g = scharr(l);
-                let to_f = |v: &i16| f32::from(*v) / 32.0;
                 Level {
-                    img: l.map(|&v| f32::from(v)),
-                    gx: g.gx.map(to_f),
-                    gy: g.gy.map(to_f),
+                    img: l.clone(),
+                    gx: g.gx,
+                    gy: g.gy,
                 }
             })
             .collect();
@@ -112,10 +115,11 @@ pub fn track(
     config: &KltConfig,
 ) -> Result<Vec<Track>, VisionError> {
     check(prev, next, config)?;
+    let mut win = Window::new(config.window_px);
     let mut out: Vec<Track> = points
         .iter()
         .map(|&p| {
-            let r = track_point(prev, next, p, p, config);
+            let r = track_point(prev, next, p, p, config, &mut win);
             Track {
                 x: r.map_or(p.0, |q| q.0),
                 y: r.map_or(p.1, |q| q.1),
@@ -129,7 +133,7 @@ pub fn track(
             if !t.ok {
                 continue;
             }
-            let back = track_point(next, prev, (t.x, t.y), p, config);
+            let back = track_point(next, prev, (t.x, t.y), p, config, &mut win);
             let err = back.map_or(f32::INFINITY, |b| (b.0 - p.0).hypot(b.1 - p.1));
             t.fb_error_px = err;
             t.ok = err <= config.fb_threshold_px;
@@ -172,6 +176,7 @@ fn track_point(
     p: (f32, f32),
     guess: (f32, f32),
     cfg: &KltConfig,
+    win: &mut Window,
 ) -> Option<(f32, f32)> {
     if !(p.0.is_finite() && p.1.is_finite() && guess.0.is_finite() && guess.1.is_finite()) {
         return None;
@@ -179,7 +184,6 @@ fn track_point(
     let n = prev.levels.len().min(next.levels.len());
     let top = n.checked_sub(1)?;
     let r = (cfg.window_px / 2) as f32;
-    let mut win = Window::new(cfg.window_px);
     let s = (1u32 << top) as f32;
     // displacement estimate at the current level
     let mut d = ((guess.0 - p.0) / s, (guess.1 - p.1) / s);
@@ -229,9 +233,16 @@ fn track_point(
         .then_some(q)
 }
 
+/// Lanes of the explicit f32 accumulators: window rows are padded to a multiple of this so
+/// that every sum runs in fixed-width chunks the compiler turns into vector adds.
+const LANES: usize = 8;
+
 /// The per-point integration window: template intensities and gradients, reused per level.
+/// Rows are `stride` long (`side` rounded up to [`LANES`]); the padding columns keep zero
+/// gradients, so they add nothing to the structure tensor or the mismatch vector.
 struct Window {
     side: usize,
+    stride: usize,
     i: Vec<f32>,
     ix: Vec<f32>,
     iy: Vec<f32>,
@@ -240,9 +251,11 @@ struct Window {
 
 impl Window {
     fn new(side: usize) -> Self {
-        let n = side * side;
+        let stride = side.next_multiple_of(LANES);
+        let n = side * stride;
         Self {
             side,
+            stride,
             i: vec![0.0; n],
             ix: vec![0.0; n],
             iy: vec![0.0; n],
@@ -251,56 +264,81 @@ impl Window {
     }
 
     fn sample_template(&mut self, l: &Level, x0: f32, y0: f32) {
-        sample(&l.img, x0, y0, self.side, &mut self.i);
-        sample(&l.gx, x0, y0, self.side, &mut self.ix);
-        sample(&l.gy, x0, y0, self.side, &mut self.iy);
+        let (side, stride) = (self.side, self.stride);
+        let at = (x0, y0);
+        sample(&l.img, at, 1.0, side, stride, &mut self.i);
+        sample(&l.gx, at, 1.0 / SCHARR_GAIN, side, stride, &mut self.ix);
+        sample(&l.gy, at, 1.0 / SCHARR_GAIN, side, stride, &mut self.iy);
     }
 
     fn structure_tensor(&self) -> (f32, f32, f32) {
-        let (mut a11, mut a12, mut a22) = (0f32, 0f32, 0f32);
-        for (&gx, &gy) in self.ix.iter().zip(&self.iy) {
-            a11 += gx * gx;
-            a12 += gx * gy;
-            a22 += gy * gy;
+        let (mut a11, mut a12, mut a22) = ([0f32; LANES], [0f32; LANES], [0f32; LANES]);
+        for (gx, gy) in self.ix.chunks_exact(LANES).zip(self.iy.chunks_exact(LANES)) {
+            for k in 0..LANES {
+                a11[k] += gx[k] * gx[k];
+                a12[k] += gx[k] * gy[k];
+                a22[k] += gy[k] * gy[k];
+            }
         }
-        (a11, a12, a22)
+        (a11.iter().sum(), a12.iter().sum(), a22.iter().sum())
     }
 
     /// `b = Σ (I − J) ∇I` with J sampled at window origin (x0, y0) of `next`.
-    fn mismatch(&mut self, next: &Image<f32>, x0: f32, y0: f32) -> (f32, f32) {
-        sample(next, x0, y0, self.side, &mut self.j);
-        let (mut b1, mut b2) = (0f32, 0f32);
-        for (((&i, &j), &gx), &gy) in self.i.iter().zip(&self.j).zip(&self.ix).zip(&self.iy) {
-            let diff = i - j;
-            b1 += diff * gx;
-            b2 += diff * gy;
+    fn mismatch(&mut self, next: &GrayImage, x0: f32, y0: f32) -> (f32, f32) {
+        sample(next, (x0, y0), 1.0, self.side, self.stride, &mut self.j);
+        let (mut b1, mut b2) = ([0f32; LANES], [0f32; LANES]);
+        let grads = lanes(&self.ix).zip(lanes(&self.iy));
+        for ((i, j), (gx, gy)) in lanes(&self.i).zip(lanes(&self.j)).zip(grads) {
+            for k in 0..LANES {
+                let diff = i[k] - j[k];
+                b1[k] += diff * gx[k];
+                b2[k] += diff * gy[k];
+            }
         }
-        (b1, b2)
+        (b1.iter().sum(), b2.iter().sum())
     }
 }
 
-/// Bilinearly samples a `side × side` grid with unit spacing whose first sample is at (x0, y0),
-/// clamping coordinates to the image (replicated border) when the window leaves it.
-fn sample(img: &Image<f32>, x0: f32, y0: f32, side: usize, out: &mut [f32]) {
+fn lanes(v: &[f32]) -> std::slice::ChunksExact<'_, f32> {
+    v.chunks_exact(LANES)
+}
+
+/// Bilinearly samples a `side × side` grid with unit spacing whose first sample is at (x0, y0)
+/// times `gain` into the first `side` entries of each `stride`-long row of `out`, clamping
+/// coordinates to the image (replicated border) when the window leaves it.
+fn sample<T: Copy + Into<f32>>(
+    img: &Image<T>,
+    (x0, y0): (f32, f32),
+    gain: f32,
+    side: usize,
+    stride: usize,
+    out: &mut [f32],
+) {
     let (w, h) = (img.width(), img.height());
     let (fx, fy) = (x0.floor(), y0.floor());
     let (ax, ay) = (x0 - fx, y0 - fy);
     let (w00, w01, w10, w11) = (
-        (1.0 - ax) * (1.0 - ay),
-        ax * (1.0 - ay),
-        (1.0 - ax) * ay,
-        ax * ay,
+        gain * (1.0 - ax) * (1.0 - ay),
+        gain * ax * (1.0 - ay),
+        gain * (1.0 - ax) * ay,
+        gain * ax * ay,
     );
     let (ix, iy) = (fx as isize, fy as isize);
     let data = img.data();
     let inside = ix >= 0 && iy >= 0 && ix as usize + side < w && iy as usize + side < h;
     if inside {
         let (ix, iy) = (ix as usize, iy as usize);
-        for (r, o) in out.chunks_exact_mut(side).enumerate() {
-            let row0 = &data[(iy + r) * w + ix..(iy + r) * w + ix + side + 1];
-            let row1 = &data[(iy + r + 1) * w + ix..(iy + r + 1) * w + ix + side + 1];
-            for ((o, a), b) in o.iter_mut().zip(row0.windows(2)).zip(row1.windows(2)) {
-                *o = w00 * a[0] + w01 * a[1] + w10 * b[0] + w11 * b[1];
+        let rows = data[iy * w..(iy + side + 1) * w].chunks_exact(w);
+        for ((o, r0), r1) in out
+            .chunks_exact_mut(stride)
+            .zip(rows.clone())
+            .zip(rows.skip(1))
+        {
+            let (r0, r1) = (&r0[ix..=ix + side], &r1[ix..=ix + side]);
+            let top = r0.iter().zip(&r0[1..]);
+            let bottom = r1.iter().zip(&r1[1..]);
+            for ((o, (&a0, &a1)), (&b0, &b1)) in o[..side].iter_mut().zip(top).zip(bottom) {
+                *o = w00 * a0.into() + w01 * a1.into() + w10 * b0.into() + w11 * b1.into();
             }
         }
     } else {
@@ -309,11 +347,11 @@ fn sample(img: &Image<f32>, x0: f32, y0: f32, side: usize, out: &mut [f32]) {
                 x.clamp(0, w as isize - 1) as usize,
                 y.clamp(0, h as isize - 1) as usize,
             );
-            data.get(y * w + x).copied().unwrap_or(0.0)
+            data.get(y * w + x).map_or(0.0, |&v| v.into())
         };
-        for (r, o) in out.chunks_exact_mut(side).enumerate() {
+        for (r, o) in out.chunks_exact_mut(stride).enumerate() {
             let y = iy + r as isize;
-            for (c, o) in o.iter_mut().enumerate() {
+            for (c, o) in o[..side].iter_mut().enumerate() {
                 let x = ix + c as isize;
                 *o = w00 * at(x, y)
                     + w01 * at(x + 1, y)

@@ -27,6 +27,7 @@ pub mod matching;
 pub mod orb;
 mod orb_pattern;
 pub mod pyramid;
+mod round;
 
 pub use clahe::{Clahe, ClaheConfig};
 pub use corners::{shi_tomasi, Corner, ShiTomasiConfig};

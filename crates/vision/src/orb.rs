@@ -20,6 +20,7 @@ use crate::fast::{fast9, FastCorner};
 use crate::filter::gaussian_blur;
 use crate::orb_pattern::BIT_PATTERN_31;
 use crate::pyramid::resize_bilinear;
+use crate::round::round_ties_even;
 
 /// A 256-bit binary descriptor, bit i in word i / 64.
 pub type Descriptor = [u64; 4];
@@ -300,8 +301,8 @@ fn describe(blurred: &GrayImage, x: usize, y: usize, angle: f32) -> Descriptor {
     let (s, c) = angle.sin_cos();
     let at = |px: i8, py: i8| {
         let (px, py) = (f32::from(px), f32::from(py));
-        let ix = (px * c - py * s).round_ties_even() as isize;
-        let iy = (px * s + py * c).round_ties_even() as isize;
+        let ix = round_ties_even(px * c - py * s) as isize;
+        let iy = round_ties_even(px * s + py * c) as isize;
         d.get((centre + iy * w + ix) as usize).copied().unwrap_or(0)
     };
     let mut desc = [0u64; 4];
