@@ -6,15 +6,23 @@
 //! Alignments whose goodness (fraction of scan points matched within the final ICP threshold)
 //! is below `min_goodness` are retried from a correlative search over a window around the guess
 //! (Olson 2009), so a bad odometry reading or a long gap does not derail the map. A scan that
-//! still does not match keeps its predicted pose and is counted as a failed match. There is no
-//! loop closure: this is the local front end that graph SLAM would build on.
+//! still does not match keeps its predicted pose and is counted as a failed match.
+//!
+//! Keyframes are also the nodes of a pose graph ([`crate::pose_graph`]): consecutive keyframes
+//! are joined by the scan-matching result, and every few keyframes a loop-closure search
+//! ([`loop_closure`]) matches the newest keyframe against old ones nearby. Each closure is an
+//! edge; the graph is then optimised and the local map moved with it (graph SLAM with a
+//! scan-matching front end, as Lu & Milios 1997 and Hess et al. 2016). Every scan's pose is kept
+//! relative to its keyframe, so the final trajectory follows the optimised graph.
 
 use crate::cloud::{estimate_normals, scan_points, voxel_downsample};
 use crate::correlative::{correlative_match, CorrelativeConfig};
 use crate::icp::{align, IcpConfig, IcpResult};
 use crate::point_map::{Keyframe, KeyframeMap};
+use crate::pose_graph::{Edge, PoseGraph};
 use crate::LidarError;
-use nalgebra::Point2;
+pub use loop_closure::LoopClosureConfig;
+use nalgebra::{Matrix3, Point2, Vector3};
 use serde::{Deserialize, Serialize};
 use slamkit_core::pose::pose2_to_pose3;
 use slamkit_core::{LaserScan, Pose2, StageTimings, Trajectory};
@@ -59,6 +67,11 @@ pub struct IcpSlamConfig {
     /// After this many scans in a row fail to match, the next scan is inserted anyway, so the
     /// map follows the robot into new ground.
     pub max_failures_before_insert: usize,
+    /// Use the scans' wheel odometry as the initial guess; when false (or a scan has none) the
+    /// last motion is repeated (constant velocity), as for a drone without odometry.
+    pub use_odometry: bool,
+    /// Loop closure and pose-graph optimisation.
+    pub loop_closure: LoopClosureConfig,
 }
 
 impl Default for IcpSlamConfig {
@@ -80,6 +93,8 @@ impl Default for IcpSlamConfig {
             normal_radius_m: 0.5,
             normal_max_flatness: 0.2,
             max_failures_before_insert: 3,
+            use_odometry: true,
+            loop_closure: LoopClosureConfig::default(),
         }
     }
 }
@@ -88,6 +103,7 @@ impl IcpSlamConfig {
     /// Checks every field's range.
     pub fn validate(&self) -> Result<(), LidarError> {
         self.icp.validate()?;
+        self.loop_closure.validate()?;
         let checks = [
             ("min_range_m", self.min_range_m, self.min_range_m >= 0.0),
             (
@@ -180,6 +196,8 @@ pub struct IcpSlamStats {
     pub correlative_recoveries: usize,
     /// Keyframes inserted into the map.
     pub keyframes: usize,
+    /// Loop closures accepted into the pose graph.
+    pub loop_closures: usize,
 }
 
 /// The incremental ICP mapper. Feed it scans in file order with [`IcpSlam::process`].
@@ -191,6 +209,13 @@ pub struct IcpSlam {
     last_odometry: Option<Pose2>,
     last_keyframe: Option<Pose2>,
     consecutive_failures: usize,
+    /// Every keyframe, at its current (optimised) pose.
+    keyframes: Vec<Keyframe>,
+    graph: PoseGraph,
+    /// Distance travelled since the last loop closure \[m\].
+    open_distance_m: f64,
+    /// Per scan: its keyframe (the newest at the time) and its pose relative to it.
+    anchors: Vec<(Option<usize>, Pose2)>,
     stats: IcpSlamStats,
     timings: StageTimings,
 }
@@ -207,6 +232,10 @@ impl IcpSlam {
             last_odometry: None,
             last_keyframe: None,
             consecutive_failures: 0,
+            keyframes: Vec::new(),
+            open_distance_m: 0.0,
+            graph: PoseGraph::new(),
+            anchors: Vec::new(),
             stats: IcpSlamStats::default(),
             timings: StageTimings::default(),
         })
@@ -222,12 +251,11 @@ impl IcpSlam {
         self.timings.record("preprocess", elapsed_ms(start));
         if points.len() < self.config.min_scan_points {
             self.stats.scans_skipped += 1;
-            return self.commit(guess, ScanStatus::Skipped, None, false);
+            return self.commit(guess, ScanStatus::Skipped, None, None);
         }
         self.stats.scans_processed += 1;
         if self.map.is_empty() {
-            self.insert(&points, &guess);
-            return self.commit(guess, ScanStatus::Initialised, None, true);
+            return self.commit(guess, ScanStatus::Initialised, None, Some(&points));
         }
         let (pose, status, goodness) = self.localise(&points, &guess);
         let moved = self.last_keyframe.map_or(true, |kf| {
@@ -237,21 +265,19 @@ impl IcpSlam {
         });
         let stale = self.consecutive_failures >= self.config.max_failures_before_insert.max(1);
         let insert = moved && (status != ScanStatus::MatchFailed || stale);
-        if insert {
-            self.insert(&points, &pose);
-        }
-        self.commit(pose, status, goodness, insert)
+        self.commit(pose, status, goodness, insert.then_some(points.as_slice()))
     }
 
     /// The pose predicted for `scan`: the odometry increment since the previous scan when both
     /// have odometry, the last motion otherwise.
     fn predict(&mut self, scan: &LaserScan) -> Pose2 {
-        let motion = match (self.last_odometry, scan.odometry) {
+        let odometry = scan.odometry.filter(|_| self.config.use_odometry);
+        let motion = match (self.last_odometry, odometry) {
             (Some(prev), Some(cur)) => prev.inverse() * cur,
             _ => self.last_motion,
         };
-        if scan.odometry.is_some() {
-            self.last_odometry = scan.odometry;
+        if odometry.is_some() {
+            self.last_odometry = odometry;
         }
         if self.map.is_empty() {
             return self.world_from_base;
@@ -326,15 +352,84 @@ impl IcpSlam {
             c.normal_radius_m,
             c.normal_max_flatness,
         );
-        self.map.insert(Keyframe {
+        let keyframe = Keyframe {
             world_from_base: *pose,
             points: points.to_vec(),
             normals,
-        });
+        };
+        self.map.insert(keyframe.clone());
+        let node = self.graph.add_node(*pose);
+        if let Some(prev) = node.checked_sub(1).and_then(|i| self.keyframes.get(i)) {
+            self.open_distance_m +=
+                (pose.translation.vector - prev.world_from_base.translation.vector).norm();
+            self.graph.add_edge(Edge {
+                from: node - 1,
+                to: node,
+                from_from_to: prev.world_from_base.inverse() * pose,
+                information: self.edge_information(),
+                robust_scale: None,
+            });
+        }
+        self.keyframes.push(keyframe);
         self.last_keyframe = Some(*pose);
         self.consecutive_failures = 0;
         self.stats.keyframes += 1;
         self.timings.record("insert", elapsed_ms(start));
+        let lc = &self.config.loop_closure;
+        if lc.enabled && node % lc.every_keyframes.max(1) == 0 {
+            self.close_loops();
+        }
+    }
+
+    fn edge_information(&self) -> Matrix3<f64> {
+        let lc = &self.config.loop_closure;
+        let (t, r) = (lc.edge_sigma_m.powi(-2), lc.edge_sigma_rad.powi(-2));
+        Matrix3::from_diagonal(&Vector3::new(t, t, r))
+    }
+
+    /// Searches loop closures for the newest keyframe; on success optimises the graph and moves
+    /// the keyframes, the local map and the current pose to the optimised poses.
+    fn close_loops(&mut self) {
+        let start = Instant::now();
+        let closures = loop_closure::find_closures(
+            &self.keyframes,
+            self.open_distance_m,
+            &self.config.loop_closure,
+        );
+        self.timings.record("loop_search", elapsed_ms(start));
+        if closures.is_empty() {
+            return;
+        }
+        let information = self.edge_information();
+        for c in &closures {
+            let added = self.graph.add_edge(Edge {
+                from: c.from,
+                to: c.to,
+                from_from_to: c.from_from_to,
+                information,
+                robust_scale: Some(self.config.loop_closure.robust_scale),
+            });
+            self.stats.loop_closures += usize::from(added);
+        }
+        self.open_distance_m = 0.0;
+        let start = Instant::now();
+        self.graph
+            .optimize(self.config.loop_closure.optimize_iterations, 1e-6);
+        let Some(&old_newest) = self.keyframes.last().map(|kf| &kf.world_from_base) else {
+            return;
+        };
+        for (kf, pose) in self.keyframes.iter_mut().zip(self.graph.nodes()) {
+            kf.world_from_base = *pose;
+        }
+        let keyframes = &self.keyframes;
+        self.map
+            .relocate(|i| keyframes.get(i).map(|kf| kf.world_from_base));
+        if let Some(newest) = self.keyframes.last().map(|kf| kf.world_from_base) {
+            // The current pose (the newest keyframe's) moves with the graph.
+            self.world_from_base = newest * (old_newest.inverse() * self.world_from_base);
+            self.last_keyframe = Some(newest);
+        }
+        self.timings.record("optimize", elapsed_ms(start));
     }
 
     fn commit(
@@ -342,7 +437,7 @@ impl IcpSlam {
         pose: Pose2,
         status: ScanStatus,
         goodness: Option<f64>,
-        inserted: bool,
+        insert: Option<&[Point2<f64>]>,
     ) -> ScanEstimate {
         // After a failed match the motion is unknown: assume standing still rather than
         // extrapolating a guess that did not fit.
@@ -351,12 +446,39 @@ impl IcpSlam {
             _ => self.world_from_base.inverse() * pose,
         };
         self.world_from_base = pose;
+        if let Some(points) = insert {
+            self.insert(points, &pose);
+        }
+        let anchor = self.keyframes.len().checked_sub(1);
+        let world_from_keyframe = anchor
+            .and_then(|i| self.keyframes.get(i))
+            .map_or(Pose2::identity(), |kf| kf.world_from_base);
+        self.anchors
+            .push((anchor, world_from_keyframe.inverse() * self.world_from_base));
         ScanEstimate {
-            world_from_base: pose,
+            world_from_base: self.world_from_base,
             status,
             goodness,
-            inserted,
+            inserted: insert.is_some(),
         }
+    }
+
+    /// The current estimate of every scan's pose so far, following the optimised keyframes.
+    pub fn poses(&self) -> Vec<Pose2> {
+        self.anchors
+            .iter()
+            .map(|(anchor, keyframe_from_base)| {
+                anchor
+                    .and_then(|i| self.keyframes.get(i))
+                    .map_or(Pose2::identity(), |kf| kf.world_from_base)
+                    * keyframe_from_base
+            })
+            .collect()
+    }
+
+    /// The keyframes, at their current (optimised) poses.
+    pub fn keyframes(&self) -> &[Keyframe] {
+        &self.keyframes
     }
 
     /// The point map built so far.
@@ -382,11 +504,12 @@ fn elapsed_ms(start: Instant) -> f64 {
 /// Everything a full run produces.
 #[derive(Debug, Clone)]
 pub struct IcpSlamOutput {
-    /// One pose per scan, in file order, with the scans' own timestamps.
+    /// One pose per scan, in file order, with the scans' own timestamps, following the
+    /// optimised pose graph.
     pub trajectory: Trajectory,
     /// The per-scan estimates (planar pose, status, goodness).
     pub estimates: Vec<ScanEstimate>,
-    /// The final point map, world frame.
+    /// The final point map of every keyframe at its optimised pose, world frame.
     pub map_points: Vec<Point2<f64>>,
     /// Counters.
     pub stats: IcpSlamStats,
@@ -401,22 +524,28 @@ pub fn run_icp_slam(
     mut on_scan: impl FnMut(usize),
 ) -> Result<IcpSlamOutput, LidarError> {
     let mut slam = IcpSlam::new(config.clone())?;
-    let mut trajectory = Trajectory::new();
     let mut estimates = Vec::with_capacity(scans.len());
     for (i, scan) in scans.iter().enumerate() {
-        let est = slam.process(scan);
-        trajectory.push(scan.timestamp, pose2_to_pose3(&est.world_from_base));
-        estimates.push(est);
+        estimates.push(slam.process(scan));
         on_scan(i);
     }
+    // The online estimates, moved to the final optimised keyframes.
+    let mut trajectory = Trajectory::new();
+    for ((est, pose), scan) in estimates.iter_mut().zip(slam.poses()).zip(scans) {
+        est.world_from_base = pose;
+        trajectory.push(scan.timestamp, pose2_to_pose3(&pose));
+    }
+    let mut map = KeyframeMap::new(config.map_voxel_m, 0);
+    map.extend(slam.keyframes.iter().cloned());
     Ok(IcpSlamOutput {
         trajectory,
         estimates,
-        map_points: slam.map.points().to_vec(),
+        map_points: map.points().to_vec(),
         stats: slam.stats,
         timings: slam.timings,
     })
 }
 
+pub mod loop_closure;
 #[cfg(test)]
 mod tests;

@@ -20,8 +20,14 @@ pub mod correlative;
 mod error;
 pub mod icp;
 pub mod icp_slam;
+pub mod layers;
+pub mod mcl;
+pub mod motion;
 pub mod nn;
+pub mod particles;
 pub mod point_map;
+pub mod pose_graph;
+pub mod rbpf;
 pub mod sim_scan;
 
 pub use error::LidarError;

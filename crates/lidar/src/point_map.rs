@@ -54,24 +54,56 @@ impl KeyframeMap {
 
     /// Adds a keyframe and re-indexes the map.
     pub fn insert(&mut self, keyframe: Keyframe) {
-        self.keyframes_inserted += 1;
-        if self.max_keyframes == 0 {
-            self.add_points(&keyframe);
-        } else {
+        self.extend(std::iter::once(keyframe));
+    }
+
+    /// Adds keyframes in order and re-indexes the map once.
+    pub fn extend(&mut self, keyframes: impl IntoIterator<Item = Keyframe>) {
+        for keyframe in keyframes {
+            self.keyframes_inserted += 1;
+            if self.max_keyframes == 0 {
+                self.add_points(&keyframe);
+            }
             self.window.push_back(keyframe);
+        }
+        if self.max_keyframes == 0 {
+            self.reindex();
+        } else {
             while self.window.len() > self.max_keyframes {
                 self.window.pop_front();
             }
-            self.voxels.clear();
-            self.points.clear();
-            self.normals.clear();
-            // Newest first: where keyframes overlap, the most recent view of a wall wins.
-            let window = std::mem::take(&mut self.window);
-            for kf in window.iter().rev() {
-                self.add_points(kf);
-            }
-            self.window = window;
+            self.rebuild();
         }
+    }
+
+    /// Moves the keyframes held in the map to new poses and rebuilds it: `pose_of(i)` is the new
+    /// pose of the `i`-th keyframe inserted (from 0), or `None` to keep its pose. Used after a
+    /// pose-graph optimisation has corrected the keyframes.
+    pub fn relocate(&mut self, pose_of: impl Fn(usize) -> Option<Pose2>) {
+        let first = self.keyframes_inserted - self.window.len();
+        for (i, kf) in self.window.iter_mut().enumerate() {
+            if let Some(pose) = pose_of(first + i) {
+                kf.world_from_base = pose;
+            }
+        }
+        self.rebuild();
+    }
+
+    /// Re-thins and re-indexes the held keyframes, newest first: where keyframes overlap, the
+    /// most recent view of a wall wins.
+    fn rebuild(&mut self) {
+        self.voxels.clear();
+        self.points.clear();
+        self.normals.clear();
+        let window = std::mem::take(&mut self.window);
+        for kf in window.iter().rev() {
+            self.add_points(kf);
+        }
+        self.window = window;
+        self.reindex();
+    }
+
+    fn reindex(&mut self) {
         self.index = PointIndex::new(self.points.clone(), Some(self.normals.clone()));
     }
 
@@ -114,10 +146,11 @@ impl KeyframeMap {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::f64::consts::FRAC_PI_2;
 
     fn kf(x: f64, pts: &[(f64, f64)]) -> Keyframe {
         Keyframe {
-            world_from_base: Pose2::new(Vector2::new(x, 0.0), std::f64::consts::FRAC_PI_2),
+            world_from_base: Pose2::new(Vector2::new(x, 0.0), FRAC_PI_2),
             points: pts.iter().map(|&(a, b)| Point2::new(a, b)).collect(),
             normals: vec![Some(Vector2::new(1.0, 0.0)); pts.len()],
         }
@@ -147,5 +180,16 @@ mod tests {
         }
         assert_eq!(map.points().len(), 5);
         assert_eq!(map.index().len(), 5);
+        // shift keyframe 3 by 1 m along y: its world point moves with it
+        map.relocate(|i| (i == 3).then(|| Pose2::new(Vector2::new(3.0, 1.0), FRAC_PI_2)));
+        assert_eq!(map.points().len(), 5);
+        assert!(map
+            .points()
+            .iter()
+            .any(|p| (p - Point2::new(3.0, 2.0)).norm() < 1e-12));
+        assert!(!map
+            .points()
+            .iter()
+            .any(|p| (p - Point2::new(3.0, 1.0)).norm() < 1e-12));
     }
 }

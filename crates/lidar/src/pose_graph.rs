@@ -1,0 +1,447 @@
+//! A 2D pose graph and its sparse Gauss–Newton solver: the SLAM back end that corrects the
+//! drift of incremental scan matching once loop closures tie new poses to old ones (Lu & Milios,
+//! "Globally consistent range scan alignment", 1997; Grisetti et al., "A tutorial on graph-based
+//! SLAM", 2010, whose error and Jacobians on SE(2) are used here; Hess et al. 2016 do the same
+//! with submaps).
+//!
+//! Nodes are poses `world_from_node`; an edge holds a measured `from_from_to` with its
+//! information matrix. Each Gauss–Newton step solves the block-sparse normal equations by
+//! eliminating nodes one at a time in minimum-degree order (variable elimination, i.e. a sparse
+//! block LDLᵀ factorisation), which keeps the fill-in small on the near-planar graphs a robot
+//! builds. Edges may carry a Cauchy kernel (iteratively reweighted), so a wrong loop closure
+//! pulls with bounded force. The first node is held fixed.
+
+use nalgebra::{Matrix3, Vector2, Vector3};
+use slamkit_core::Pose2;
+use std::collections::{BTreeMap, BTreeSet};
+
+/// A relative pose measurement between two nodes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Edge {
+    /// Index of the node the measurement is expressed in.
+    pub from: usize,
+    /// Index of the measured node.
+    pub to: usize,
+    /// Measured pose of `to` in the frame of `from`.
+    pub from_from_to: Pose2,
+    /// Information (inverse covariance) of `(x, y, θ)` in the frame of `from` \[1/m², 1/rad²\].
+    pub information: Matrix3<f64>,
+    /// Scale of the Cauchy kernel on the Mahalanobis error (`None`: plain least squares).
+    pub robust_scale: Option<f64>,
+}
+
+/// What an optimisation did.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OptimizeSummary {
+    /// Gauss–Newton iterations run.
+    pub iterations: usize,
+    /// Robust cost (sum of ½ρ(χ²) over edges) before the first step.
+    pub initial_cost: f64,
+    /// Robust cost after the last step.
+    pub final_cost: f64,
+}
+
+/// Poses and the relative measurements between them.
+#[derive(Debug, Clone, Default)]
+pub struct PoseGraph {
+    nodes: Vec<Pose2>,
+    edges: Vec<Edge>,
+}
+
+impl PoseGraph {
+    /// An empty graph.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Adds a node at `world_from_node` and returns its index.
+    pub fn add_node(&mut self, world_from_node: Pose2) -> usize {
+        self.nodes.push(world_from_node);
+        self.nodes.len() - 1
+    }
+
+    /// Adds an edge; returns false (and adds nothing) when a node index is out of range, the
+    /// edge is a self-loop or a value is not finite.
+    pub fn add_edge(&mut self, edge: Edge) -> bool {
+        let finite = edge.information.iter().all(|v| v.is_finite())
+            && edge
+                .from_from_to
+                .translation
+                .vector
+                .iter()
+                .all(|v| v.is_finite())
+            && edge.from_from_to.rotation.angle().is_finite();
+        if edge.from == edge.to || edge.from.max(edge.to) >= self.nodes.len() || !finite {
+            return false;
+        }
+        self.edges.push(edge);
+        true
+    }
+
+    /// The node poses.
+    pub fn nodes(&self) -> &[Pose2] {
+        &self.nodes
+    }
+
+    /// The edges.
+    pub fn edges(&self) -> &[Edge] {
+        &self.edges
+    }
+
+    /// Runs up to `max_iterations` Gauss–Newton steps, stopping once a step moves no node by
+    /// more than `tolerance` (in metres and radians).
+    pub fn optimize(&mut self, max_iterations: usize, tolerance: f64) -> OptimizeSummary {
+        let initial_cost = self.cost();
+        let mut iterations = 0;
+        while iterations < max_iterations && self.nodes.len() > 1 {
+            iterations += 1;
+            let Some(step) = self.solve_step() else {
+                break;
+            };
+            let mut largest: f64 = 0.0;
+            for (node, d) in self.nodes.iter_mut().zip(&step) {
+                let (t, a) = (node.translation.vector, node.rotation.angle());
+                *node = Pose2::new(t + d.xy(), a + d.z);
+                largest = largest.max(d.abs().max());
+            }
+            if largest < tolerance {
+                break;
+            }
+        }
+        OptimizeSummary {
+            iterations,
+            initial_cost,
+            final_cost: self.cost(),
+        }
+    }
+
+    /// Robust cost of the current poses.
+    pub fn cost(&self) -> f64 {
+        self.edges
+            .iter()
+            .filter_map(|e| {
+                let (a, b) = (self.nodes.get(e.from)?, self.nodes.get(e.to)?);
+                let r = edge_error(e, a, b);
+                Some(robust(e.robust_scale, r.dot(&(e.information * r))).0)
+            })
+            .sum()
+    }
+
+    /// Builds and solves the normal equations at the current poses; `None` when singular.
+    fn solve_step(&self) -> Option<Vec<Vector3<f64>>> {
+        let n = self.nodes.len();
+        let mut system = BlockSystem::new(n);
+        // Hold the first node: a stiff prior on its increment.
+        system.add_diag(0, Matrix3::identity() * 1e12, Vector3::zeros());
+        for e in &self.edges {
+            let (Some(a), Some(b)) = (self.nodes.get(e.from), self.nodes.get(e.to)) else {
+                continue;
+            };
+            let r = edge_error(e, a, b);
+            let (ja, jb) = edge_jacobians(e, a, b);
+            let (_, w) = robust(e.robust_scale, r.dot(&(e.information * r)));
+            let omega = e.information * w;
+            system.add_diag(
+                e.from,
+                ja.transpose() * omega * ja,
+                ja.transpose() * omega * r,
+            );
+            system.add_diag(
+                e.to,
+                jb.transpose() * omega * jb,
+                jb.transpose() * omega * r,
+            );
+            system.add_off(e.from, e.to, ja.transpose() * omega * jb);
+        }
+        system.solve().map(|x| x.into_iter().map(|d| -d).collect())
+    }
+}
+
+/// Error of edge `e` at poses `a` (of `from`) and `b` (of `to`): the measured pose of `b` in `a`'s
+/// frame against the predicted one, `(R_zᵀ(R_aᵀ(t_b − t_a) − t_z), θ_b − θ_a − θ_z)`.
+fn edge_error(e: &Edge, a: &Pose2, b: &Pose2) -> Vector3<f64> {
+    let z = &e.from_from_to;
+    let dt = a.rotation.inverse() * (b.translation.vector - a.translation.vector);
+    let et = z.rotation.inverse() * (dt - z.translation.vector);
+    let ea = wrap(b.rotation.angle() - a.rotation.angle() - z.rotation.angle());
+    Vector3::new(et.x, et.y, ea)
+}
+
+/// Jacobians of [`edge_error`] with respect to `(x, y, θ)` of `a` and of `b`.
+fn edge_jacobians(e: &Edge, a: &Pose2, b: &Pose2) -> (Matrix3<f64>, Matrix3<f64>) {
+    let rz_t = e.from_from_to.rotation.inverse().to_rotation_matrix();
+    let ra_t = a.rotation.inverse().to_rotation_matrix();
+    let (s, c) = a.rotation.angle().sin_cos();
+    let dt = b.translation.vector - a.translation.vector;
+    // d(R_aᵀ)/dθ · dt
+    let d_ra_t = Vector2::new(-s * dt.x + c * dt.y, -c * dt.x - s * dt.y);
+    let rr = rz_t.matrix() * ra_t.matrix();
+    let col = rz_t.matrix() * d_ra_t;
+    let ja = Matrix3::new(
+        -rr[(0, 0)],
+        -rr[(0, 1)],
+        col.x,
+        -rr[(1, 0)],
+        -rr[(1, 1)],
+        col.y,
+        0.0,
+        0.0,
+        -1.0,
+    );
+    let jb = Matrix3::new(
+        rr[(0, 0)],
+        rr[(0, 1)],
+        0.0,
+        rr[(1, 0)],
+        rr[(1, 1)],
+        0.0,
+        0.0,
+        0.0,
+        1.0,
+    );
+    (ja, jb)
+}
+
+/// Cauchy kernel on a squared Mahalanobis error: `(½ρ(χ²), ρ'(χ²))`, or `(½χ², 1)` without one.
+fn robust(scale: Option<f64>, chi2: f64) -> (f64, f64) {
+    match scale {
+        Some(k) if k > 0.0 => {
+            let k2 = k * k;
+            (0.5 * k2 * (1.0 + chi2 / k2).ln(), 1.0 / (1.0 + chi2 / k2))
+        }
+        _ => (0.5 * chi2, 1.0),
+    }
+}
+
+/// An angle wrapped to (−π, π].
+fn wrap(a: f64) -> f64 {
+    let w = a.sin().atan2(a.cos());
+    if w <= -std::f64::consts::PI {
+        w + 2.0 * std::f64::consts::PI
+    } else {
+        w
+    }
+}
+
+/// Symmetric block-sparse normal equations `H x = g` with 3×3 blocks.
+struct BlockSystem {
+    diag: Vec<Matrix3<f64>>,
+    rhs: Vec<Vector3<f64>>,
+    /// `off[i][j]` = block `H_ij` for `i ≠ j`, stored in both directions.
+    off: Vec<BTreeMap<usize, Matrix3<f64>>>,
+}
+
+impl BlockSystem {
+    fn new(n: usize) -> Self {
+        Self {
+            diag: vec![Matrix3::zeros(); n],
+            rhs: vec![Vector3::zeros(); n],
+            off: vec![BTreeMap::new(); n],
+        }
+    }
+
+    fn add_diag(&mut self, i: usize, h: Matrix3<f64>, g: Vector3<f64>) {
+        if let (Some(d), Some(r)) = (self.diag.get_mut(i), self.rhs.get_mut(i)) {
+            *d += h;
+            *r += g;
+        }
+    }
+
+    fn add_off(&mut self, i: usize, j: usize, h_ij: Matrix3<f64>) {
+        if let Some(row) = self.off.get_mut(i) {
+            *row.entry(j).or_insert_with(Matrix3::zeros) += h_ij;
+        }
+        if let Some(row) = self.off.get_mut(j) {
+            *row.entry(i).or_insert_with(Matrix3::zeros) += h_ij.transpose();
+        }
+    }
+
+    /// Solves by block elimination in minimum-degree order, then back substitution.
+    fn solve(mut self) -> Option<Vec<Vector3<f64>>> {
+        let n = self.diag.len();
+        let mut queue: BTreeSet<(usize, usize)> = (0..n).map(|i| (self.off[i].len(), i)).collect();
+        // Per eliminated node: D⁻¹, its remaining neighbours' blocks H_kj, and its rhs.
+        let mut eliminated = Vec::with_capacity(n);
+        while let Some((_, k)) = queue.pop_first() {
+            let d_inv = self.diag.get(k)?.try_inverse()?;
+            let row = std::mem::take(self.off.get_mut(k)?);
+            let g_k = *self.rhs.get(k)?;
+            for (&a, h_ka) in &row {
+                let h_ak = h_ka.transpose();
+                let h_ak_dinv = h_ak * d_inv;
+                let old_degree = self.off.get(a)?.len();
+                let a_row = self.off.get_mut(a)?;
+                a_row.remove(&k);
+                for (&b, h_kb) in &row {
+                    let update = h_ak_dinv * h_kb;
+                    if a == b {
+                        *self.diag.get_mut(a)? -= update;
+                    } else {
+                        *a_row.entry(b).or_insert_with(Matrix3::zeros) -= update;
+                    }
+                }
+                *self.rhs.get_mut(a)? -= h_ak_dinv * g_k;
+                let new_degree = self.off.get(a)?.len();
+                if queue.remove(&(old_degree, a)) {
+                    queue.insert((new_degree, a));
+                }
+            }
+            eliminated.push((k, d_inv, row, g_k));
+        }
+        let mut x = vec![Vector3::zeros(); n];
+        for (k, d_inv, row, g_k) in eliminated.into_iter().rev() {
+            let coupled = row.iter().fold(g_k, |acc, (&j, h_kj)| {
+                acc - h_kj * x.get(j).copied().unwrap_or_default()
+            });
+            *x.get_mut(k)? = d_inv * coupled;
+        }
+        x.iter()
+            .all(|v| v.iter().all(|c| c.is_finite()))
+            .then_some(x)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    fn edge(from: usize, to: usize, z: Pose2, robust_scale: Option<f64>) -> Edge {
+        Edge {
+            from,
+            to,
+            from_from_to: z,
+            information: Matrix3::from_diagonal(&Vector3::new(100.0, 100.0, 1000.0)),
+            robust_scale,
+        }
+    }
+
+    /// A square loop of `n` poses per side: the true poses, and a graph of odometry edges with a
+    /// heading bias (so the chain drifts) plus one exact loop-closure edge.
+    fn drifting_square(n: usize) -> (Vec<Pose2>, PoseGraph) {
+        let mut truth = vec![Pose2::identity()];
+        for _side in 0..4 {
+            for s in 0..n {
+                let turn = if s == n - 1 {
+                    std::f64::consts::FRAC_PI_2
+                } else {
+                    0.0
+                };
+                let last = truth[truth.len() - 1];
+                truth.push(last * Pose2::new(Vector2::new(0.5, 0.0), turn));
+            }
+        }
+        let mut graph = PoseGraph::new();
+        let mut est = Pose2::identity();
+        let mut rng = ChaCha8Rng::seed_from_u64(9);
+        graph.add_node(est);
+        for i in 1..truth.len() {
+            let z = truth[i - 1].inverse() * truth[i];
+            let noisy = Pose2::new(
+                z.translation.vector + Vector2::new(rng.gen_range(-0.01..0.01), 0.0),
+                z.rotation.angle() + 0.01,
+            );
+            est *= noisy;
+            graph.add_node(est);
+            assert!(graph.add_edge(edge(i - 1, i, noisy, None)));
+        }
+        let last = truth.len() - 1;
+        assert!(graph.add_edge(edge(0, last, truth[0].inverse() * truth[last], None)));
+        (truth, graph)
+    }
+
+    fn end_error(truth: &[Pose2], graph: &PoseGraph) -> f64 {
+        let last = truth.len() - 1;
+        (truth[last].translation.vector - graph.nodes()[last].translation.vector).norm()
+    }
+
+    #[test]
+    fn loop_closure_removes_drift() {
+        let (truth, mut graph) = drifting_square(20);
+        let before = end_error(&truth, &graph);
+        let summary = graph.optimize(20, 1e-9);
+        let after = end_error(&truth, &graph);
+        assert!(before > 1.0, "drift before {before}");
+        assert!(after < 0.05, "error after {after}");
+        assert!(summary.final_cost < 0.01 * summary.initial_cost);
+        let first = graph.nodes()[0];
+        assert!(first.translation.vector.norm() < 1e-9 && first.rotation.angle().abs() < 1e-9);
+    }
+
+    #[test]
+    fn elimination_matches_a_dense_solve() {
+        let (_, graph) = drifting_square(5);
+        let sparse = graph.solve_step().unwrap();
+        let n = graph.nodes().len();
+        let mut h = nalgebra::DMatrix::<f64>::zeros(3 * n, 3 * n);
+        let mut g = nalgebra::DVector::<f64>::zeros(3 * n);
+        for i in 0..3 {
+            h[(i, i)] += 1e12;
+        }
+        for e in graph.edges() {
+            let (a, b) = (graph.nodes()[e.from], graph.nodes()[e.to]);
+            let r = edge_error(e, &a, &b);
+            let (ja, jb) = edge_jacobians(e, &a, &b);
+            let mut j = nalgebra::DMatrix::<f64>::zeros(3, 3 * n);
+            j.view_mut((0, 3 * e.from), (3, 3)).copy_from(&ja);
+            j.view_mut((0, 3 * e.to), (3, 3)).copy_from(&jb);
+            h += j.transpose() * e.information * &j;
+            g += j.transpose() * (e.information * r);
+        }
+        let dense = -h.lu().solve(&g).unwrap();
+        for (i, s) in sparse.iter().enumerate() {
+            for c in 0..3 {
+                assert!((s[c] - dense[3 * i + c]).abs() < 1e-6, "node {i}");
+            }
+        }
+    }
+
+    #[test]
+    fn jacobians_match_finite_differences() {
+        let e = edge(0, 1, Pose2::new(Vector2::new(0.3, -0.2), 0.4), None);
+        let a = Pose2::new(Vector2::new(1.0, 2.0), 0.7);
+        let b = Pose2::new(Vector2::new(1.5, 1.6), 1.2);
+        let (ja, jb) = edge_jacobians(&e, &a, &b);
+        let bump = |p: &Pose2, k: usize, h: f64| {
+            let mut v = Vector3::new(p.translation.vector.x, p.translation.vector.y, 0.0);
+            v[k] += h;
+            Pose2::new(v.xy(), p.rotation.angle() + if k == 2 { h } else { 0.0 })
+        };
+        let h = 1e-6;
+        for k in 0..3 {
+            let da = (edge_error(&e, &bump(&a, k, h), &b) - edge_error(&e, &bump(&a, k, -h), &b))
+                / (2.0 * h);
+            let db = (edge_error(&e, &a, &bump(&b, k, h)) - edge_error(&e, &a, &bump(&b, k, -h)))
+                / (2.0 * h);
+            assert!((da - ja.column(k)).norm() < 1e-6, "ja column {k}");
+            assert!((db - jb.column(k)).norm() < 1e-6, "jb column {k}");
+        }
+    }
+
+    #[test]
+    fn a_robust_kernel_bounds_a_wrong_loop_closure() {
+        let (truth, mut graph) = drifting_square(20);
+        let last = truth.len() - 1;
+        let wrong = truth[10].inverse() * truth[last] * Pose2::new(Vector2::new(3.0, 0.0), 0.5);
+        assert!(graph.add_edge(edge(10, last, wrong, Some(1.0))));
+        graph.optimize(30, 1e-9);
+        assert!(
+            end_error(&truth, &graph) < 0.3,
+            "{}",
+            end_error(&truth, &graph)
+        );
+    }
+
+    #[test]
+    fn bad_edges_are_refused() {
+        let mut graph = PoseGraph::new();
+        graph.add_node(Pose2::identity());
+        assert!(!graph.add_edge(edge(0, 0, Pose2::identity(), None)));
+        assert!(!graph.add_edge(edge(0, 3, Pose2::identity(), None)));
+        graph.add_node(Pose2::identity());
+        let nan = Pose2::new(Vector2::new(f64::NAN, 0.0), 0.0);
+        assert!(!graph.add_edge(edge(0, 1, nan, None)));
+        assert_eq!(graph.optimize(5, 1e-9).iterations, 1);
+    }
+}
