@@ -66,6 +66,26 @@ impl Trajectory {
                 .all(|w| w[0].timestamp <= w[1].timestamp)
     }
 
+    /// Largest difference, pose by pose, of timestamps or homogeneous-matrix entries; `None`
+    /// when the lengths differ. What a file round trip must keep near zero.
+    pub fn max_difference(&self, other: &Trajectory) -> Option<f64> {
+        if self.len() != other.len() {
+            return None;
+        }
+        let diff = self
+            .poses
+            .iter()
+            .zip(&other.poses)
+            .map(|(p, q)| {
+                let dm = (p.pose.to_homogeneous() - q.pose.to_homogeneous())
+                    .abs()
+                    .max();
+                dm.max((p.timestamp - q.timestamp).abs())
+            })
+            .fold(0.0, f64::max);
+        Some(diff)
+    }
+
     /// A copy in time order. The sort is stable, so poses with equal timestamps keep their
     /// order; poses whose timestamp is NaN or infinite cannot be placed in time and are dropped.
     pub fn sorted_by_time(&self) -> Trajectory {
@@ -142,6 +162,17 @@ mod tests {
             tr.push(*t, *p);
         }
         tr
+    }
+
+    #[test]
+    fn max_difference_sees_time_translation_and_length() {
+        let a = traj(&[(1.0, yaw_pose(0.0, 0.0)), (2.0, yaw_pose(1.0, 0.5))]);
+        assert_eq!(a.max_difference(&a), Some(0.0));
+        let shifted = traj(&[(1.0, yaw_pose(0.0, 0.0)), (2.25, yaw_pose(1.5, 0.5))]);
+        assert_eq!(a.max_difference(&shifted), Some(0.5));
+        let late = traj(&[(1.0, yaw_pose(0.0, 0.0)), (2.75, yaw_pose(1.0, 0.5))]);
+        assert_eq!(a.max_difference(&late), Some(0.75));
+        assert_eq!(a.max_difference(&traj(&[(1.0, yaw_pose(0.0, 0.0))])), None);
     }
 
     #[test]

@@ -99,6 +99,26 @@ pub struct StereoSequence {
 }
 
 impl RgbdSequence {
+    /// A sequence whose depth is registered to colour (one camera for both) and whose only
+    /// "no depth" value is 0, as TUM RGB-D and Redwood store it.
+    pub fn registered(
+        root: &Path,
+        frames: Vec<RgbdFrame>,
+        camera: PinholeCamera,
+        depth_units_per_metre: f64,
+        ground_truth: Option<Trajectory>,
+    ) -> Self {
+        Self {
+            root: root.to_path_buf(),
+            frames,
+            color_camera: camera,
+            depth_camera: camera,
+            depth_units_per_metre,
+            invalid_depth: Vec::new(),
+            ground_truth,
+        }
+    }
+
     /// Decodes a frame's colour and depth images, depth converted to metres.
     pub fn load(&self, frame: &RgbdFrame) -> Result<RgbdImages, IoError> {
         let color = load_rgb(&frame.color)?;

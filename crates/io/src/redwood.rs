@@ -88,15 +88,13 @@ pub fn open(dir: &Path, config: &RedwoodConfig) -> Result<RgbdSequence, IoError>
         None
     };
     let k = read_camera(dir, size)?;
-    Ok(RgbdSequence {
-        root: dir.to_path_buf(),
+    Ok(RgbdSequence::registered(
+        dir,
         frames,
-        color_camera: k,
-        depth_camera: k,
-        depth_units_per_metre: config.depth_units_per_metre,
-        invalid_depth: Vec::new(),
+        k,
+        config.depth_units_per_metre,
         ground_truth,
-    })
+    ))
 }
 
 /// Parses a Redwood / Open3D `.log` trajectory; pose i is stamped i / `frame_rate_hz`.

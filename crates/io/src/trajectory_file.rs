@@ -421,20 +421,6 @@ mod tests {
         traj
     }
 
-    fn max_pose_diff(a: &Trajectory, b: &Trajectory) -> f64 {
-        assert_eq!(a.len(), b.len());
-        a.poses
-            .iter()
-            .zip(&b.poses)
-            .map(|(p, q)| {
-                let dm = (p.pose.to_homogeneous() - q.pose.to_homogeneous())
-                    .abs()
-                    .max();
-                dm.max((p.timestamp - q.timestamp).abs())
-            })
-            .fold(0.0, f64::max)
-    }
-
     #[test]
     fn tum_round_trip_is_exact_to_1e9() {
         let dir = tempfile::tempdir().unwrap();
@@ -444,9 +430,9 @@ mod tests {
         let (back, format) = read_trajectory(&path).unwrap();
         assert_eq!(format, TrajectoryFormat::Tum);
         assert!(
-            max_pose_diff(&traj, &back) < 1e-9,
+            traj.max_difference(&back).unwrap() < 1e-9,
             "{}",
-            max_pose_diff(&traj, &back)
+            traj.max_difference(&back).unwrap()
         );
     }
 
@@ -461,7 +447,7 @@ mod tests {
         write_kitti(&path, &traj).unwrap();
         let (back, format) = read_trajectory(&path).unwrap();
         assert_eq!(format, TrajectoryFormat::Kitti);
-        assert!(max_pose_diff(&traj, &back) < 1e-9);
+        assert!(traj.max_difference(&back).unwrap() < 1e-9);
     }
 
     #[test]

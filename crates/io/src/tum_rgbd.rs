@@ -129,15 +129,13 @@ pub fn open(dir: &Path, config: &TumRgbdConfig) -> Result<RgbdSequence, IoError>
         None
     };
     let k = config.camera.camera(dir);
-    Ok(RgbdSequence {
-        root: dir.to_path_buf(),
+    Ok(RgbdSequence::registered(
+        dir,
         frames,
-        color_camera: k,
-        depth_camera: k,
-        depth_units_per_metre: config.depth_units_per_metre,
-        invalid_depth: Vec::new(),
+        k,
+        config.depth_units_per_metre,
         ground_truth,
-    })
+    ))
 }
 
 /// A `timestamp path` entry of `rgb.txt` / `depth.txt`.

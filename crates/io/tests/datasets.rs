@@ -23,21 +23,6 @@ fn data(test: &str, rel: &str) -> Option<PathBuf> {
     }
 }
 
-/// Largest difference of timestamps or homogeneous-matrix entries between two trajectories.
-fn max_diff(a: &Trajectory, b: &Trajectory) -> f64 {
-    assert_eq!(a.len(), b.len());
-    a.poses
-        .iter()
-        .zip(&b.poses)
-        .map(|(p, q)| {
-            let dm = (p.pose.to_homogeneous() - q.pose.to_homogeneous())
-                .abs()
-                .max();
-            dm.max((p.timestamp - q.timestamp).abs())
-        })
-        .fold(0.0, f64::max)
-}
-
 /// Checks (translation, quaternion x y z w) of a pose against the values printed in a file.
 fn assert_pose(traj: &Trajectory, index: usize, t: [f64; 3], q_xyzw: [f64; 4], tol: f64) {
     let p = &traj.poses[index].pose;
@@ -163,7 +148,7 @@ fn every_reference_trajectory_reads_and_round_trips_through_tum() {
         write_tum(&out, &traj).unwrap();
         let (back, back_format) = read_trajectory(&out).unwrap();
         assert_eq!(back_format, TrajectoryFormat::Tum);
-        let diff = max_diff(&traj, &back);
+        let diff = traj.max_difference(&back).unwrap();
         assert!(diff < 1e-9, "{rel}: round trip differs by {diff}");
     }
 }
@@ -326,7 +311,7 @@ fn seven_scenes_redkitchen_frames_intrinsics_and_poses() {
         .write_ground_truth_tum(&tum)
         .unwrap();
     let (back, _) = read_trajectory(&tum).unwrap();
-    assert!(max_diff(gt, &back) < 1e-9);
+    assert!(gt.max_difference(&back).unwrap() < 1e-9);
 }
 
 #[test]
