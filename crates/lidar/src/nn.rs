@@ -3,7 +3,7 @@
 //! back rather than bare indices.
 
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
-use nalgebra::{Point2, Vector2};
+use nalgebra::{Point2, UnitComplex, Vector2};
 use std::collections::HashSet;
 
 /// Points with optional unit normals, indexed for nearest-neighbour queries.
@@ -13,6 +13,28 @@ pub struct PointIndex {
     tree: Option<ImmutableKdTree<f64, 2>>,
     /// Index into `points` of each tree item.
     tree_items: Vec<usize>,
+    /// The tree holds the points turned by this rotation (see [`PointIndex::new`]).
+    tree_from_world: UnitComplex<f64>,
+}
+
+/// kiddo 4's immutable tree overflows a leaf (and panics) when more than its bucket size (32)
+/// of items share one coordinate value; below half of that it has never failed in our tests.
+const MAX_SHARED_COORDINATE: usize = 16;
+
+/// Largest number of `coords` sharing one value on either axis.
+fn max_shared_coordinate(coords: &[[f64; 2]]) -> usize {
+    (0..2)
+        .map(|axis| {
+            let mut values: Vec<u64> = coords.iter().map(|c| c[axis].to_bits()).collect();
+            values.sort_unstable();
+            values
+                .chunk_by(|a, b| a == b)
+                .map(<[u64]>::len)
+                .max()
+                .unwrap_or(0)
+        })
+        .max()
+        .unwrap_or(0)
 }
 
 /// One neighbour found by a query.
@@ -35,7 +57,7 @@ impl PointIndex {
         // kiddo's immutable tree misbuilds on exact duplicates, and NaN has no place in it:
         // index each distinct finite position once.
         let mut seen = HashSet::with_capacity(points.len());
-        let (tree_items, coords): (Vec<usize>, Vec<[f64; 2]>) = points
+        let (tree_items, mut coords): (Vec<usize>, Vec<[f64; 2]>) = points
             .iter()
             .enumerate()
             .filter(|(_, p)| {
@@ -43,13 +65,33 @@ impl PointIndex {
             })
             .map(|(i, p)| (i, [p.x, p.y]))
             .unzip();
-        let tree = (!coords.is_empty()).then(|| ImmutableKdTree::new_from_slice(&coords));
+        // Many points on one axis-aligned line (simulated or grid-snapped walls) share a
+        // coordinate and would break the tree: index them turned by 1 rad instead, which breaks
+        // the ties; input that still ties gets no tree (queries then find nothing).
+        let mut tree_from_world = UnitComplex::identity();
+        if max_shared_coordinate(&coords) > MAX_SHARED_COORDINATE {
+            tree_from_world = UnitComplex::new(1.0);
+            for c in &mut coords {
+                let p = tree_from_world * Point2::new(c[0], c[1]);
+                *c = [p.x, p.y];
+            }
+        }
+        let buildable =
+            !coords.is_empty() && max_shared_coordinate(&coords) <= MAX_SHARED_COORDINATE;
+        let tree = buildable.then(|| ImmutableKdTree::new_from_slice(&coords));
         Self {
             points,
             normals,
             tree,
             tree_items,
+            tree_from_world,
         }
+    }
+
+    /// `query` in the tree's frame, when finite.
+    fn tree_query(&self, query: &Point2<f64>) -> Option<[f64; 2]> {
+        let q = self.tree_from_world * query;
+        (q.x.is_finite() && q.y.is_finite()).then_some([q.x, q.y])
     }
 
     /// Number of indexed points.
@@ -80,11 +122,9 @@ impl PointIndex {
     /// The nearest indexed point to `query`, or `None` when the index is empty or the query is
     /// not finite.
     pub fn nearest(&self, query: &Point2<f64>) -> Option<Neighbour> {
-        if !(query.x.is_finite() && query.y.is_finite()) {
-            return None;
-        }
+        let q = self.tree_query(query)?;
         let tree = self.tree.as_ref()?;
-        let nn = tree.nearest_one::<SquaredEuclidean>(&[query.x, query.y]);
+        let nn = tree.nearest_one::<SquaredEuclidean>(&q);
         Some(Neighbour {
             index: self.item_index(nn.item)?,
             distance_m: nn.distance.sqrt(),
@@ -97,14 +137,10 @@ impl PointIndex {
 
     /// Up to `k` nearest indexed points to `query`, closest first.
     pub fn nearest_k(&self, query: &Point2<f64>, k: usize) -> Vec<Neighbour> {
-        let Some(tree) = self
-            .tree
-            .as_ref()
-            .filter(|_| query.x.is_finite() && query.y.is_finite())
-        else {
+        let (Some(tree), Some(q)) = (self.tree.as_ref(), self.tree_query(query)) else {
             return Vec::new();
         };
-        tree.nearest_n::<SquaredEuclidean>(&[query.x, query.y], k)
+        tree.nearest_n::<SquaredEuclidean>(&q, k)
             .into_iter()
             .filter_map(|nn| {
                 Some(Neighbour {
@@ -163,6 +199,24 @@ mod tests {
                 .fold(f64::INFINITY, f64::min);
             assert!((index.nearest(&q).unwrap().distance_m - brute).abs() < 1e-9);
         }
+    }
+
+    #[test]
+    fn long_axis_aligned_walls_are_indexed() {
+        // 200 points on each of two axis-aligned walls: kiddo 4 panics on such ties unless the
+        // index breaks them.
+        let mut pts = Vec::new();
+        for i in 0..200 {
+            pts.push(Point2::new(6.0, -4.0 + i as f64 * 0.04));
+            pts.push(Point2::new(-6.0 + i as f64 * 0.06, 4.0));
+        }
+        let index = PointIndex::new(pts.clone(), None);
+        let q = Point2::new(5.5, 0.013);
+        let brute = pts
+            .iter()
+            .map(|p| (p - q).norm())
+            .fold(f64::INFINITY, f64::min);
+        assert!((index.nearest(&q).unwrap().distance_m - brute).abs() < 1e-9);
     }
 
     #[test]

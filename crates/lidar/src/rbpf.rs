@@ -1,0 +1,555 @@
+//! Rao-Blackwellised particle-filter SLAM in the style of GMapping (G. Grisetti, C. Stachniss,
+//! W. Burgard, "Improved techniques for grid mapping with Rao-Blackwellized particle filters",
+//! IEEE T-RO 23(1), 2007; K. Murphy, "Bayesian map learning in dynamic environments", NIPS 1999).
+//!
+//! Each particle is a robot trajectory with its own occupancy grid. The grids share unchanged
+//! 64 × 64 tiles (copy-on-write, `slamkit_map`'s tiles), so resampling copies only a tile index
+//! and memory grows with the tiles particles actually changed, not with particles × map size.
+//!
+//! The filter runs an update whenever the odometry has moved or turned far enough since the last
+//! one (GMapping `linearUpdate`, `angularUpdate`): every particle draws its new pose from the
+//! improved proposal ([`proposal`]: scan matching against its own map, then sampling around the
+//! match), multiplies its weight by the proposal's normaliser, and inserts the scan into its map.
+//! Particles are resampled only when the effective sample size falls below
+//! `resample_threshold · N` ([`crate::particles`]). Odometry comes from the log's wheel odometry,
+//! or from scan-to-scan ICP when the log has none ([`crate::motion`]).
+//!
+//! Loop closure needs no explicit step: when the robot re-enters mapped ground, particles whose
+//! map and trajectory agree with the scan gain weight and the others die out. The output is
+//! the trajectory of the particle with the highest weight at the end, read back through its
+//! ancestry; scans between two updates are placed by odometry, with the correction at the next
+//! update spread over them linearly. Random choices come from a seeded ChaCha8 generator, so a
+//! run is reproducible.
+
+pub mod proposal;
+
+use crate::motion::{odometry_poses, MotionModelConfig, ScanOdometryConfig};
+use crate::particles::{effective_sample_size, low_variance_resample, normalized_weights};
+use crate::LidarError;
+use proposal::{propose, GridScorer, PreparedScan, ProposalConfig};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+use slamkit_core::pose::{pose2_to_pose3, wrap_angle};
+use slamkit_core::{LaserScan, Pose2, StageTimings, Trajectory};
+use slamkit_map::{shared_tile_stats, OccupancyGrid, OccupancyGridConfig};
+use std::sync::Arc;
+use std::time::Instant;
+
+/// Particle-filter SLAM parameters.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RbpfConfig {
+    /// Number of particles.
+    pub particles: usize,
+    /// Seed of the random generator.
+    pub seed: u64,
+    /// Each particle's occupancy grid.
+    pub grid: OccupancyGridConfig,
+    /// Scan matching and the improved proposal.
+    pub proposal: ProposalConfig,
+    /// Odometry noise.
+    pub motion: MotionModelConfig,
+    /// Use the log's wheel odometry when every scan has it; scan-to-scan ICP otherwise.
+    pub use_odometry: bool,
+    /// Scan-to-scan ICP odometry for logs without wheel odometry.
+    pub scan_odometry: ScanOdometryConfig,
+    /// Beams shorter than this are not matched \[m\].
+    pub min_range_m: f64,
+    /// Beams at or beyond this are not matched \[m\].
+    pub max_range_m: f64,
+    /// Every n-th beam is matched (>= 1).
+    pub beam_stride: usize,
+    /// Run an update after the odometry moved this far since the last \[m\].
+    pub update_linear_m: f64,
+    /// Run an update after the odometry turned this much since the last \[rad\].
+    pub update_angular_rad: f64,
+    /// Resample when the effective sample size drops below this fraction of the particles.
+    pub resample_threshold: f64,
+    /// Scans with fewer usable beams are skipped.
+    pub min_scan_points: usize,
+}
+
+impl Default for RbpfConfig {
+    fn default() -> Self {
+        Self {
+            particles: 30,
+            seed: 1,
+            grid: OccupancyGridConfig {
+                max_usable_range_m: 20.0,
+                ..OccupancyGridConfig::default()
+            },
+            proposal: ProposalConfig::default(),
+            motion: MotionModelConfig::default(),
+            use_odometry: true,
+            scan_odometry: ScanOdometryConfig::default(),
+            min_range_m: 0.1,
+            max_range_m: 20.0,
+            beam_stride: 2,
+            update_linear_m: 0.3,
+            update_angular_rad: 0.2,
+            resample_threshold: 0.5,
+            min_scan_points: 20,
+        }
+    }
+}
+
+impl RbpfConfig {
+    /// Checks every field's range.
+    pub fn validate(&self) -> Result<(), LidarError> {
+        self.grid
+            .validate()
+            .map_err(|_| invalid("grid", f64::NAN, "invalid occupancy grid configuration"))?;
+        if !self.proposal.is_valid() {
+            return Err(invalid(
+                "proposal",
+                f64::NAN,
+                "a proposal value is out of range",
+            ));
+        }
+        if !self.motion.is_valid() {
+            return Err(invalid(
+                "motion",
+                f64::NAN,
+                "a motion noise value is out of range",
+            ));
+        }
+        self.scan_odometry.icp.validate()?;
+        if self.particles == 0 || self.particles > 100_000 {
+            return Err(invalid(
+                "particles",
+                self.particles as f64,
+                "must be in 1..=100000",
+            ));
+        }
+        let checks = [
+            ("min_range_m", self.min_range_m, self.min_range_m >= 0.0),
+            (
+                "max_range_m",
+                self.max_range_m,
+                self.max_range_m > self.min_range_m,
+            ),
+            (
+                "update_linear_m",
+                self.update_linear_m,
+                self.update_linear_m >= 0.0,
+            ),
+            (
+                "update_angular_rad",
+                self.update_angular_rad,
+                self.update_angular_rad >= 0.0,
+            ),
+            (
+                "resample_threshold",
+                self.resample_threshold,
+                (0.0..=1.0).contains(&self.resample_threshold),
+            ),
+            (
+                "beam_stride",
+                self.beam_stride as f64,
+                self.beam_stride >= 1,
+            ),
+        ];
+        for (field, value, ok) in checks {
+            if !(ok && value.is_finite()) {
+                return Err(invalid(field, value, "out of range"));
+            }
+        }
+        Ok(())
+    }
+}
+
+fn invalid(field: &'static str, value: f64, reason: &'static str) -> LidarError {
+    LidarError::InvalidConfig {
+        field,
+        value: value.to_string(),
+        reason,
+    }
+}
+
+/// A pose of a particle's trajectory at one update, linked to the one before.
+struct Node {
+    scan: usize,
+    world_from_base: Pose2,
+    parent: Option<Arc<Node>>,
+}
+
+impl Drop for Node {
+    /// Unlinks the chain iteratively: a recursive drop of a long trajectory would overflow the
+    /// stack.
+    fn drop(&mut self) {
+        let mut next = self.parent.take();
+        while let Some(node) = next {
+            match Arc::try_unwrap(node) {
+                Ok(mut owned) => next = owned.parent.take(),
+                Err(_) => break,
+            }
+        }
+    }
+}
+
+/// One hypothesis: a trajectory, its map and its weight.
+#[derive(Clone)]
+struct Particle {
+    world_from_base: Pose2,
+    grid: OccupancyGrid,
+    log_weight: f64,
+    node: Arc<Node>,
+}
+
+/// Memory used by the particles' maps.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct MapMemory {
+    /// Bytes of all particles' grids, each shared tile counted once.
+    pub shared_bytes: usize,
+    /// Bytes the grids would take without sharing (sum over particles).
+    pub unshared_bytes: usize,
+    /// Bytes of one particle's grid (the best one).
+    pub single_map_bytes: usize,
+}
+
+/// Counters over a run.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct RbpfStats {
+    /// Scans given to the filter.
+    pub scans_read: usize,
+    /// Scans that ran a filter update.
+    pub updates: usize,
+    /// Scans skipped for too few usable beams (NaN, negative, no-return or empty).
+    pub scans_skipped: usize,
+    /// Particle proposals whose scan match failed (motion model sampled instead).
+    pub matches_failed: usize,
+    /// Resampling steps.
+    pub resamples: usize,
+    /// True when the log's wheel odometry was used, false for scan-to-scan ICP odometry.
+    pub wheel_odometry: bool,
+    /// Scans scan-to-scan ICP odometry could not align.
+    pub odometry_failures: usize,
+    /// Memory of the particle maps at the end of the run.
+    pub memory_end: MapMemory,
+    /// Largest shared memory of the particle maps seen during the run \[bytes\].
+    pub peak_shared_bytes: usize,
+}
+
+/// What a scan did to the filter.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RbpfStep {
+    /// The first usable scan: every particle's map starts from it.
+    Initialised,
+    /// A filter update ran.
+    Updated,
+    /// The robot has not moved enough since the last update.
+    Waiting,
+    /// Too few usable beams.
+    Skipped,
+}
+
+/// The particle filter. Feed it scans in file order with [`Rbpf::process`].
+pub struct Rbpf {
+    config: RbpfConfig,
+    particles: Vec<Particle>,
+    rng: ChaCha8Rng,
+    last_update_odometry: Option<Pose2>,
+    stats: RbpfStats,
+    timings: StageTimings,
+}
+
+impl Rbpf {
+    /// A filter with no particles yet; the first usable scan initialises them.
+    pub fn new(config: RbpfConfig) -> Result<Self, LidarError> {
+        config.validate()?;
+        Ok(Self {
+            rng: ChaCha8Rng::seed_from_u64(config.seed),
+            config,
+            particles: Vec::new(),
+            last_update_odometry: None,
+            stats: RbpfStats::default(),
+            timings: StageTimings::default(),
+        })
+    }
+
+    /// Processes scan number `index` whose odometry pose is `odometry`.
+    pub fn process(&mut self, index: usize, scan: &LaserScan, odometry: &Pose2) -> RbpfStep {
+        self.stats.scans_read += 1;
+        let increment = match self.last_update_odometry {
+            Some(last) => last.inverse() * odometry,
+            None => Pose2::identity(),
+        };
+        let moved = increment.translation.vector.norm() >= self.config.update_linear_m
+            || wrap_angle(increment.rotation.angle()).abs() >= self.config.update_angular_rad;
+        if self.last_update_odometry.is_some() && !moved {
+            return RbpfStep::Waiting;
+        }
+        let c = &self.config;
+        let back_m = c.grid.resolution_m;
+        let prepared = PreparedScan::new(scan, c.min_range_m, c.max_range_m, c.beam_stride, back_m);
+        if prepared.len() < c.min_scan_points {
+            self.stats.scans_skipped += 1;
+            return RbpfStep::Skipped;
+        }
+        let step = if self.particles.is_empty() {
+            match self.initialise(index, scan) {
+                Some(()) => RbpfStep::Initialised,
+                None => {
+                    self.stats.scans_skipped += 1;
+                    return RbpfStep::Skipped;
+                }
+            }
+        } else {
+            self.update(index, scan, &prepared, &increment);
+            RbpfStep::Updated
+        };
+        self.last_update_odometry = Some(*odometry);
+        step
+    }
+
+    /// Starts every particle at the origin with one map built from `scan` (shared by all).
+    fn initialise(&mut self, index: usize, scan: &LaserScan) -> Option<()> {
+        let mut grid = OccupancyGrid::new(self.config.grid.clone()).ok()?;
+        grid.insert_scan(scan, &scan.base_from_laser).ok()?;
+        let node = Arc::new(Node {
+            scan: index,
+            world_from_base: Pose2::identity(),
+            parent: None,
+        });
+        let particle = Particle {
+            world_from_base: Pose2::identity(),
+            grid,
+            log_weight: 0.0,
+            node,
+        };
+        self.particles = vec![particle; self.config.particles];
+        Some(())
+    }
+
+    /// One filter update: propose, weight, insert, maybe resample.
+    fn update(
+        &mut self,
+        index: usize,
+        scan: &LaserScan,
+        prepared: &PreparedScan,
+        increment: &Pose2,
+    ) {
+        self.stats.updates += 1;
+        let started = Instant::now();
+        let config = &self.config;
+        for particle in &mut self.particles {
+            let scorer = GridScorer::new(&particle.grid, &config.proposal);
+            let p = propose(
+                &scorer,
+                prepared,
+                &particle.world_from_base,
+                increment,
+                &config.motion,
+                &config.proposal,
+                &mut self.rng,
+            );
+            self.stats.matches_failed += usize::from(!p.matched);
+            particle.world_from_base = p.world_from_base;
+            particle.log_weight += p.log_weight;
+        }
+        let proposed = Instant::now();
+        for particle in &mut self.particles {
+            let world_from_laser = particle.world_from_base * scan.base_from_laser;
+            // A finite pose inside the addressable area always inserts; a failure leaves the
+            // particle's map as it was.
+            let _ = particle.grid.insert_scan(scan, &world_from_laser);
+            particle.node = Arc::new(Node {
+                scan: index,
+                world_from_base: particle.world_from_base,
+                parent: Some(particle.node.clone()),
+            });
+        }
+        let inserted = Instant::now();
+        self.resample_if_needed();
+        self.timings.record("proposal", ms(started, proposed));
+        self.timings.record("map_update", ms(proposed, inserted));
+        self.timings
+            .record("resample", ms(inserted, Instant::now()));
+        if self.stats.updates % 50 == 0 {
+            let shared = shared_tile_stats(self.particles.iter().map(|p| &p.grid)).bytes;
+            self.stats.peak_shared_bytes = self.stats.peak_shared_bytes.max(shared);
+        }
+    }
+
+    fn resample_if_needed(&mut self) {
+        let log_weights: Vec<f64> = self.particles.iter().map(|p| p.log_weight).collect();
+        let weights = normalized_weights(&log_weights);
+        let n = self.particles.len();
+        if effective_sample_size(&weights) >= self.config.resample_threshold * n as f64 {
+            // Keep weights bounded: shift so the best is 0.
+            let max = log_weights
+                .iter()
+                .copied()
+                .fold(f64::NEG_INFINITY, f64::max);
+            for p in &mut self.particles {
+                p.log_weight -= max;
+            }
+            return;
+        }
+        self.stats.resamples += 1;
+        let picks = low_variance_resample(&weights, n, &mut self.rng);
+        let mut next: Vec<Particle> = picks
+            .iter()
+            .filter_map(|&i| self.particles.get(i).cloned())
+            .collect();
+        for p in &mut next {
+            p.log_weight = 0.0;
+        }
+        self.particles = next;
+    }
+
+    /// Index of the particle with the highest weight.
+    fn best(&self) -> Option<&Particle> {
+        self.particles
+            .iter()
+            .max_by(|a, b| a.log_weight.total_cmp(&b.log_weight))
+    }
+
+    /// The best particle's poses at its updates, as `(scan index, world_from_base)` in time
+    /// order.
+    pub fn best_updates(&self) -> Vec<(usize, Pose2)> {
+        let mut out = Vec::new();
+        let mut node = self.best().map(|p| &p.node);
+        while let Some(n) = node {
+            out.push((n.scan, n.world_from_base));
+            node = n.parent.as_ref();
+        }
+        out.reverse();
+        out
+    }
+
+    /// The best particle's map.
+    pub fn best_map(&self) -> Option<&OccupancyGrid> {
+        self.best().map(|p| &p.grid)
+    }
+
+    /// Memory of the particles' maps now.
+    pub fn map_memory(&self) -> MapMemory {
+        MapMemory {
+            shared_bytes: shared_tile_stats(self.particles.iter().map(|p| &p.grid)).bytes,
+            unshared_bytes: self
+                .particles
+                .iter()
+                .map(|p| p.grid.tile_stats().bytes)
+                .sum(),
+            single_map_bytes: self.best().map_or(0, |p| p.grid.tile_stats().bytes),
+        }
+    }
+
+    /// Counters so far.
+    pub fn stats(&self) -> &RbpfStats {
+        &self.stats
+    }
+
+    /// Per-stage timings so far.
+    pub fn timings(&self) -> &StageTimings {
+        &self.timings
+    }
+}
+
+fn ms(a: Instant, b: Instant) -> f64 {
+    (b - a).as_secs_f64() * 1e3
+}
+
+/// Everything a full run produces.
+#[derive(Debug, Clone)]
+pub struct RbpfOutput {
+    /// One pose per scan, in file order, with the scans' timestamps.
+    pub trajectory: Trajectory,
+    /// The same poses as planar `world_from_base`.
+    pub poses: Vec<Pose2>,
+    /// The best particle's map; `None` when no scan was usable.
+    pub map: Option<OccupancyGrid>,
+    /// Counters.
+    pub stats: RbpfStats,
+    /// Per-stage timings.
+    pub timings: StageTimings,
+}
+
+/// Runs particle-filter SLAM over `scans` in order, calling `on_scan` after each.
+pub fn run_rbpf(
+    scans: &[LaserScan],
+    config: &RbpfConfig,
+    mut on_scan: impl FnMut(usize),
+) -> Result<RbpfOutput, LidarError> {
+    let mut filter = Rbpf::new(config.clone())?;
+    let started = Instant::now();
+    let (odometry, odometry_failures, wheel) =
+        odometry_poses(scans, config.use_odometry, &config.scan_odometry);
+    filter
+        .timings
+        .record("odometry", ms(started, Instant::now()));
+    for (i, (scan, odom)) in scans.iter().zip(&odometry).enumerate() {
+        filter.process(i, scan, odom);
+        on_scan(i);
+    }
+    filter.stats.wheel_odometry = wheel;
+    filter.stats.odometry_failures = odometry_failures;
+    filter.stats.memory_end = filter.map_memory();
+    filter.stats.peak_shared_bytes = filter
+        .stats
+        .peak_shared_bytes
+        .max(filter.stats.memory_end.shared_bytes);
+    let poses = interpolate_poses(&filter.best_updates(), &odometry);
+    let mut trajectory = Trajectory::new();
+    for (scan, pose) in scans.iter().zip(&poses) {
+        trajectory.push(scan.timestamp, pose2_to_pose3(pose));
+    }
+    Ok(RbpfOutput {
+        trajectory,
+        poses,
+        map: filter.best_map().cloned(),
+        stats: filter.stats,
+        timings: filter.timings,
+    })
+}
+
+/// One pose per scan from the poses at the updates (`(scan index, pose)`, increasing index):
+/// scans between two updates follow odometry from the earlier one, with the discrepancy found
+/// at the later one spread linearly over them; scans outside follow odometry from the nearest
+/// update. Without updates the odometry itself is returned.
+pub fn interpolate_poses(updates: &[(usize, Pose2)], odometry: &[Pose2]) -> Vec<Pose2> {
+    let Some(&(first_index, first_pose)) = updates.first() else {
+        return odometry.to_vec();
+    };
+    let from = |anchor: usize, anchor_pose: &Pose2, i: usize| -> Pose2 {
+        match (odometry.get(anchor), odometry.get(i)) {
+            (Some(a), Some(b)) => anchor_pose * (a.inverse() * b),
+            _ => *anchor_pose,
+        }
+    };
+    let mut poses = Vec::with_capacity(odometry.len());
+    let mut segment = 0;
+    for i in 0..odometry.len() {
+        while updates.get(segment + 1).is_some_and(|u| u.0 <= i) {
+            segment += 1;
+        }
+        let (ia, pa) = updates
+            .get(segment)
+            .copied()
+            .unwrap_or((first_index, first_pose));
+        if i < ia {
+            poses.push(from(ia, &pa, i));
+            continue;
+        }
+        let odo = from(ia, &pa, i);
+        let Some(&(ib, pb)) = updates.get(segment + 1) else {
+            poses.push(odo);
+            continue;
+        };
+        let predicted_b = from(ia, &pa, ib);
+        let f = (i - ia) as f64 / (ib - ia) as f64;
+        let dt = pb.translation.vector - predicted_b.translation.vector;
+        let da = wrap_angle(pb.rotation.angle() - predicted_b.rotation.angle());
+        poses.push(Pose2::new(
+            odo.translation.vector + dt * f,
+            odo.rotation.angle() + da * f,
+        ));
+    }
+    poses
+}
+
+#[cfg(test)]
+pub(crate) mod tests;
