@@ -247,6 +247,7 @@ struct Window {
     ix: Vec<f32>,
     iy: Vec<f32>,
     j: Vec<f32>,
+    rows: RowScratch,
 }
 
 impl Window {
@@ -260,15 +261,15 @@ impl Window {
             ix: vec![0.0; n],
             iy: vec![0.0; n],
             j: vec![0.0; n],
+            rows: RowScratch::new(stride),
         }
     }
 
     fn sample_template(&mut self, l: &Level, x0: f32, y0: f32) {
-        let (side, stride) = (self.side, self.stride);
-        let at = (x0, y0);
-        sample(&l.img, at, 1.0, side, stride, &mut self.i);
-        sample(&l.gx, at, 1.0 / SCHARR_GAIN, side, stride, &mut self.ix);
-        sample(&l.gy, at, 1.0 / SCHARR_GAIN, side, stride, &mut self.iy);
+        let (at, size, rows) = ((x0, y0), (self.side, self.stride), &mut self.rows);
+        sample(&l.img, at, 1.0, &mut self.i, size, rows);
+        sample(&l.gx, at, 1.0 / SCHARR_GAIN, &mut self.ix, size, rows);
+        sample(&l.gy, at, 1.0 / SCHARR_GAIN, &mut self.iy, size, rows);
     }
 
     fn structure_tensor(&self) -> (f32, f32, f32) {
@@ -285,7 +286,8 @@ impl Window {
 
     /// `b = Σ (I − J) ∇I` with J sampled at window origin (x0, y0) of `next`.
     fn mismatch(&mut self, next: &GrayImage, x0: f32, y0: f32) -> (f32, f32) {
-        sample(next, (x0, y0), 1.0, self.side, self.stride, &mut self.j);
+        let size = (self.side, self.stride);
+        sample(next, (x0, y0), 1.0, &mut self.j, size, &mut self.rows);
         let (mut b1, mut b2) = ([0f32; LANES], [0f32; LANES]);
         let grads = lanes(&self.ix).zip(lanes(&self.iy));
         for ((i, j), (gx, gy)) in lanes(&self.i).zip(lanes(&self.j)).zip(grads) {
@@ -303,61 +305,103 @@ fn lanes(v: &[f32]) -> std::slice::ChunksExact<'_, f32> {
     v.chunks_exact(LANES)
 }
 
-/// Bilinearly samples a `side × side` grid with unit spacing whose first sample is at (x0, y0)
-/// times `gain` into the first `side` entries of each `stride`-long row of `out`, clamping
-/// coordinates to the image (replicated border) when the window leaves it.
+/// Row buffers of the separable bilinear sampler, `stride` (+1) long so that the loops run in
+/// whole [`LANES`]-wide chunks: one source row converted to f32 (zero past the window), and
+/// the horizontally interpolated current and previous rows.
+struct RowScratch {
+    src: Vec<f32>,
+    cur: Vec<f32>,
+    prev: Vec<f32>,
+}
+
+impl RowScratch {
+    fn new(stride: usize) -> Self {
+        Self {
+            src: vec![0.0; stride + 1],
+            cur: vec![0.0; stride],
+            prev: vec![0.0; stride],
+        }
+    }
+}
+
+/// Bilinearly samples a `side × side` grid with unit spacing whose first sample is at (x0, y0),
+/// times `gain`, into the first `side` entries of each `stride`-long row of `out` (the rest of
+/// each row is set to zero), clamping coordinates to the image (replicated border) when the
+/// window leaves it.
+///
+/// Inside the image the interpolation runs separably: each of the `side + 1` source rows is
+/// converted and interpolated along x once, then consecutive rows are blended along y, so every
+/// source pixel is converted once instead of four times.
 fn sample<T: Copy + Into<f32>>(
     img: &Image<T>,
     (x0, y0): (f32, f32),
     gain: f32,
-    side: usize,
-    stride: usize,
     out: &mut [f32],
+    (side, stride): (usize, usize),
+    rows: &mut RowScratch,
 ) {
     let (w, h) = (img.width(), img.height());
     let (fx, fy) = (x0.floor(), y0.floor());
     let (ax, ay) = (x0 - fx, y0 - fy);
-    let (w00, w01, w10, w11) = (
-        gain * (1.0 - ax) * (1.0 - ay),
-        gain * ax * (1.0 - ay),
-        gain * (1.0 - ax) * ay,
-        gain * ax * ay,
-    );
     let (ix, iy) = (fx as isize, fy as isize);
     let data = img.data();
     let inside = ix >= 0 && iy >= 0 && ix as usize + side < w && iy as usize + side < h;
-    if inside {
-        let (ix, iy) = (ix as usize, iy as usize);
-        let rows = data[iy * w..(iy + side + 1) * w].chunks_exact(w);
-        for ((o, r0), r1) in out
-            .chunks_exact_mut(stride)
-            .zip(rows.clone())
-            .zip(rows.skip(1))
-        {
-            let (r0, r1) = (&r0[ix..=ix + side], &r1[ix..=ix + side]);
-            let top = r0.iter().zip(&r0[1..]);
-            let bottom = r1.iter().zip(&r1[1..]);
-            for ((o, (&a0, &a1)), (&b0, &b1)) in o[..side].iter_mut().zip(top).zip(bottom) {
-                *o = w00 * a0.into() + w01 * a1.into() + w10 * b0.into() + w11 * b1.into();
+    if !inside {
+        sample_clamped(img, (ix, iy), (ax, ay), gain, out, (side, stride));
+        return;
+    }
+    let (ix, iy) = (ix as usize, iy as usize);
+    let src_rows = data[iy * w..(iy + side + 1) * w].chunks_exact(w);
+    let mut dst_rows = out.chunks_exact_mut(stride);
+    for (r, src) in src_rows.enumerate() {
+        for (c, &v) in rows.src.iter_mut().zip(&src[ix..=ix + side]) {
+            *c = gain * v.into();
+        }
+        let (left, right) = (lanes(&rows.src[..stride]), lanes(&rows.src[1..]));
+        for ((o, a), b) in rows.cur.chunks_exact_mut(LANES).zip(left).zip(right) {
+            for k in 0..LANES {
+                o[k] = a[k] + ax * (b[k] - a[k]);
             }
         }
-    } else {
-        let at = |x: isize, y: isize| {
-            let (x, y) = (
-                x.clamp(0, w as isize - 1) as usize,
-                y.clamp(0, h as isize - 1) as usize,
-            );
-            data.get(y * w + x).map_or(0.0, |&v| v.into())
-        };
-        for (r, o) in out.chunks_exact_mut(stride).enumerate() {
-            let y = iy + r as isize;
-            for (c, o) in o[..side].iter_mut().enumerate() {
-                let x = ix + c as isize;
-                *o = w00 * at(x, y)
-                    + w01 * at(x + 1, y)
-                    + w10 * at(x, y + 1)
-                    + w11 * at(x + 1, y + 1);
+        if r > 0 {
+            let Some(dst) = dst_rows.next() else { break };
+            let (top, bottom) = (lanes(&rows.prev), lanes(&rows.cur));
+            for ((o, t), b) in dst.chunks_exact_mut(LANES).zip(top).zip(bottom) {
+                for k in 0..LANES {
+                    o[k] = t[k] + ay * (b[k] - t[k]);
+                }
             }
+            dst[side..].fill(0.0);
+        }
+        std::mem::swap(&mut rows.cur, &mut rows.prev);
+    }
+}
+
+/// [`sample`] near the border: four clamped taps per sample.
+fn sample_clamped<T: Copy + Into<f32>>(
+    img: &Image<T>,
+    (ix, iy): (isize, isize),
+    (ax, ay): (f32, f32),
+    gain: f32,
+    out: &mut [f32],
+    (side, stride): (usize, usize),
+) {
+    let (w, h) = (img.width(), img.height());
+    let data = img.data();
+    let at = |x: isize, y: isize| {
+        let (x, y) = (
+            x.clamp(0, w as isize - 1) as usize,
+            y.clamp(0, h as isize - 1) as usize,
+        );
+        data.get(y * w + x).map_or(0.0, |&v| gain * v.into())
+    };
+    for (r, o) in out.chunks_exact_mut(stride).enumerate() {
+        let y = iy + r as isize;
+        for (c, o) in o[..side].iter_mut().enumerate() {
+            let x = ix + c as isize;
+            let top = at(x, y) + ax * (at(x + 1, y) - at(x, y));
+            let bottom = at(x, y + 1) + ax * (at(x + 1, y + 1) - at(x, y + 1));
+            *o = top + ay * (bottom - top);
         }
     }
 }

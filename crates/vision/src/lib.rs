@@ -14,6 +14,8 @@
 //! * [`klt`]: pyramidal Lucas–Kanade tracking (Bouguet 2001) with a forward–backward check.
 //! * [`fast`], [`orb`], [`matching`]: FAST-9 (Rosten & Drummond 2006), ORB (Rublee et al.
 //!   2011) and Hamming descriptor matching.
+//! * [`stereo`]: sparse ZNCC stereo matching along epipolar lines with sub-pixel disparity and
+//!   a per-point confidence.
 
 mod border;
 pub mod clahe;
@@ -28,6 +30,7 @@ pub mod orb;
 mod orb_pattern;
 pub mod pyramid;
 mod round;
+pub mod stereo;
 
 pub use clahe::{Clahe, ClaheConfig};
 pub use corners::{shi_tomasi, Corner, ShiTomasiConfig};
@@ -36,3 +39,4 @@ pub use klt::{KltConfig, KltPyramid, Track};
 pub use matching::{match_descriptors, DescriptorMatch, MatchConfig};
 pub use orb::{Descriptor, Keypoint, Orb, OrbConfig, OrbFeatures};
 pub use slamkit_core::image::{GrayImage, Image, RgbImage};
+pub use stereo::{StereoConfig, StereoMatch, StereoPair};
