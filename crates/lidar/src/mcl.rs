@@ -34,9 +34,10 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 use slamkit_core::pose::{pose2_to_pose3, wrap_angle};
-use slamkit_core::{LaserScan, Pose2, Trajectory};
+use slamkit_core::{LaserScan, Pose2, StageTimings, Trajectory};
 use slamkit_map::{LikelihoodField, LikelihoodFieldConfig, Occupancy, OccupancyGrid};
 use std::f64::consts::PI;
+use std::time::Instant;
 
 /// Monte Carlo localisation parameters.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -528,6 +529,8 @@ pub struct MclOutput {
     pub estimates: Vec<Option<MclEstimate>>,
     /// Counters.
     pub stats: MclStats,
+    /// Per-stage timings: `odometry` once, `update` (predict and correct) per update.
+    pub timings: StageTimings,
 }
 
 /// Localises every scan of `scans` in `map`, starting from a global initialisation, calling
@@ -539,7 +542,10 @@ pub fn run_mcl(
     mut on_scan: impl FnMut(usize),
 ) -> Result<MclOutput, LidarError> {
     let mut mcl = Mcl::new(map, config.clone())?;
+    let mut timings = StageTimings::default();
+    let started = Instant::now();
     let (odometry, _, wheel) = odometry_poses(scans, config.use_odometry, &config.scan_odometry);
+    timings.record("odometry", started.elapsed().as_secs_f64() * 1e3);
     mcl.stats.wheel_odometry = wheel;
     let mut last: Option<(Pose2, Pose2)> = None; // (odometry, estimate) at the last update
     let mut poses = Vec::with_capacity(scans.len());
@@ -550,6 +556,7 @@ pub fn run_mcl(
         let moved = increment.translation.vector.norm() >= config.update_linear_m
             || wrap_angle(increment.rotation.angle()).abs() >= config.update_angular_rad;
         if last.is_none() || moved {
+            let started = Instant::now();
             mcl.predict(&increment);
             if let Some(e) = mcl.correct(scan) {
                 last = Some((*odom, e.world_from_base));
@@ -560,6 +567,7 @@ pub fn run_mcl(
                 // The particles moved: keep the reference odometry in step with them.
                 last = Some((*odom, pose * increment));
             }
+            timings.record("update", started.elapsed().as_secs_f64() * 1e3);
         }
         let pose = last.map_or(Pose2::identity(), |(o, p)| p * (o.inverse() * odom));
         poses.push(pose);
@@ -578,6 +586,7 @@ pub fn run_mcl(
         poses,
         estimates,
         stats: mcl.stats,
+        timings,
     })
 }
 

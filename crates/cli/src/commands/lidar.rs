@@ -3,10 +3,12 @@
 //! known.
 
 use crate::commands::eval::load_relations;
+use crate::commands::lidar_pf;
 use crate::output::{peak_rss_bytes, prepare_out_dir, progress_bar, timings_json, write_report};
 use anyhow::Context;
+use serde::de::DeserializeOwned;
 use serde_json::json;
-use slamkit_core::LaserScan;
+use slamkit_core::{LaserScan, Trajectory};
 use slamkit_lidar::icp_slam::{run_icp_slam, IcpSlamConfig, IcpSlamOutput};
 use slamkit_map::{save_map_yaml, save_png, OccupancyGrid, OccupancyGridConfig};
 use std::path::{Path, PathBuf};
@@ -48,14 +50,14 @@ pub struct LidarArgs {
 
 /// Runs `slamkit lidar`.
 pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
-    if args.localize.is_some() {
-        anyhow::bail!("`slamkit lidar --localize` is not implemented yet (issue #3)");
+    if let Some(map) = &args.localize {
+        return lidar_pf::run_localization(args, map);
     }
     if args.method == Method::Rbpf {
-        anyhow::bail!("`slamkit lidar --method rbpf` is not implemented yet (issue #3)");
+        return lidar_pf::run_rbpf_slam(args);
     }
     let started = Instant::now();
-    let config = load_config(args.config.as_deref())?;
+    let config: IcpSlamConfig = load_config(args.config.as_deref())?;
     let out = prepare_out_dir(&args.out)?;
     let log = slamkit_io::carmen::read_carmen(&args.log)
         .with_context(|| format!("reading log {}", args.log.display()))?;
@@ -71,15 +73,7 @@ pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
     save_map_yaml(&grid, &out.join("map.yaml"))?;
     save_png(&grid, &out.join("map.png"))?;
 
-    let metrics = match relations_path(args) {
-        Some(path) => {
-            let relations = load_relations(&path)?;
-            let stats = slamkit_eval::relations_error(&relations, &result.trajectory)
-                .with_context(|| format!("scoring against {}", path.display()))?;
-            json!({ "relations_file": path, "relations": stats })
-        }
-        None => json!(null),
-    };
+    let metrics = relations_metrics(args, &result.trajectory)?;
     let report = json!({
         "input": args.log,
         "method": "icp",
@@ -102,9 +96,10 @@ pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn load_config(path: Option<&Path>) -> anyhow::Result<IcpSlamConfig> {
+/// The method's configuration: defaults overridden by the TOML file at `path`, when given.
+pub(crate) fn load_config<C: DeserializeOwned + Default>(path: Option<&Path>) -> anyhow::Result<C> {
     let Some(path) = path else {
-        return Ok(IcpSlamConfig::default());
+        return Ok(C::default());
     };
     let text =
         std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
@@ -123,6 +118,20 @@ fn relations_path(args: &LidarArgs) -> Option<PathBuf> {
     candidate.exists().then_some(candidate)
 }
 
+/// The relations metric of `trajectory` (JSON), or null when no relations file is known.
+pub(crate) fn relations_metrics(
+    args: &LidarArgs,
+    trajectory: &Trajectory,
+) -> anyhow::Result<serde_json::Value> {
+    let Some(path) = relations_path(args) else {
+        return Ok(json!(null));
+    };
+    let relations = load_relations(&path)?;
+    let stats = slamkit_eval::relations_error(&relations, trajectory)
+        .with_context(|| format!("scoring against {}", path.display()))?;
+    Ok(json!({ "relations_file": path, "relations": stats }))
+}
+
 /// Inserts every scan at its estimated pose into a fresh occupancy grid.
 fn build_grid(scans: &[LaserScan], result: &IcpSlamOutput) -> anyhow::Result<OccupancyGrid> {
     let mut grid = OccupancyGrid::new(OccupancyGridConfig::default())?;
@@ -134,7 +143,8 @@ fn build_grid(scans: &[LaserScan], result: &IcpSlamOutput) -> anyhow::Result<Occ
     Ok(grid)
 }
 
-fn print_summary(out: &Path, report: &serde_json::Value) {
+/// Prints the frame counts, wall time and relations metric of `report`.
+pub(crate) fn print_summary(out: &Path, report: &serde_json::Value) {
     let f = &report["frames"];
     println!(
         "scans: {} read, {} processed, {} skipped, {} failed matches; {:.1} s",

@@ -1,0 +1,118 @@
+//! `slamkit lidar --method rbpf` and `slamkit lidar --localize MAP.yaml`: the particle-filter
+//! paths of the lidar command. Particle-filter SLAM writes the best particle's map; localisation
+//! writes the map it was given. Both write the trajectory, report.json and, when the log's
+//! benchmark `.relations` file is known, the relations metric, through the same helpers as
+//! `--method icp`.
+
+use crate::commands::lidar::{load_config, print_summary, relations_metrics, LidarArgs};
+use crate::output::{peak_rss_bytes, prepare_out_dir, progress_bar, timings_json, write_report};
+use anyhow::Context;
+use serde_json::json;
+use slamkit_io::carmen::CarmenLog;
+use slamkit_lidar::mcl::{run_mcl, MclConfig};
+use slamkit_lidar::rbpf::{run_rbpf, RbpfConfig};
+use slamkit_map::{load_map_yaml, save_map_yaml, save_png, OccupancyGrid};
+use std::path::Path;
+use std::time::Instant;
+
+/// Runs particle-filter SLAM (`--method rbpf`).
+pub fn run_rbpf_slam(args: &LidarArgs) -> anyhow::Result<()> {
+    let started = Instant::now();
+    let config = RbpfConfig {
+        particles: args.particles,
+        ..load_config::<RbpfConfig>(args.config.as_deref())?
+    };
+    let out = prepare_out_dir(&args.out)?;
+    let log = read_log(&args.log)?;
+    let bar = progress_bar(log.scans.len() as u64, "rbpf-slam");
+    let result = run_rbpf(&log.scans, &config, |_| bar.inc(1))?;
+    bar.finish_and_clear();
+
+    slamkit_io::trajectory_file::write_tum(&out.join("trajectory.tum"), &result.trajectory)?;
+    let map = result
+        .map
+        .as_ref()
+        .context("no scan of the log was usable, so no map was built")?;
+    write_map(map, &out)?;
+    let s = &result.stats;
+    let report = json!({
+        "input": args.log,
+        "method": "rbpf",
+        "config": config,
+        "frames": {
+            "read": log.scans.len(),
+            "processed": s.updates,
+            "skipped": s.scans_skipped,
+            "failed": s.matches_failed,
+            "unreadable_lines": log.skipped.len(),
+        },
+        "stats": s,
+        "wall_seconds": started.elapsed().as_secs_f64(),
+        "timings_ms": timings_json(&result.timings),
+        "peak_rss_bytes": peak_rss_bytes(),
+        "metrics": relations_metrics(args, &result.trajectory)?,
+    });
+    write_report(&out, &report)?;
+    print_summary(&out, &report);
+    Ok(())
+}
+
+/// Runs Monte Carlo localisation in the map `--localize` names.
+pub fn run_localization(args: &LidarArgs, map_path: &Path) -> anyhow::Result<()> {
+    let started = Instant::now();
+    let config = load_config::<MclConfig>(args.config.as_deref())?;
+    let map = load_map_yaml(map_path)
+        .with_context(|| format!("loading the map {}", map_path.display()))?;
+    let out = prepare_out_dir(&args.out)?;
+    let log = read_log(&args.log)?;
+    let bar = progress_bar(log.scans.len() as u64, "mcl");
+    let result = run_mcl(&log.scans, &map, &config, |_| bar.inc(1))
+        .with_context(|| format!("localising in {}", map_path.display()))?;
+    bar.finish_and_clear();
+
+    slamkit_io::trajectory_file::write_tum(&out.join("trajectory.tum"), &result.trajectory)?;
+    write_map(&map, &out)?;
+    let s = &result.stats;
+    let report = json!({
+        "input": args.log,
+        "map": map_path,
+        "method": "mcl",
+        "config": config,
+        "frames": {
+            "read": log.scans.len(),
+            "processed": s.updates,
+            "skipped": s.scans_skipped,
+            "failed": 0,
+            "unreadable_lines": log.skipped.len(),
+        },
+        "stats": s,
+        "final_estimate": result.estimates.last().copied().flatten(),
+        "wall_seconds": started.elapsed().as_secs_f64(),
+        "timings_ms": timings_json(&result.timings),
+        "peak_rss_bytes": peak_rss_bytes(),
+        "metrics": relations_metrics(args, &result.trajectory)?,
+    });
+    write_report(&out, &report)?;
+    print_summary(&out, &report);
+    if let Some(scan) = s.first_converged_scan {
+        println!("converged at scan {scan}");
+    } else {
+        println!("the particles never gathered within the convergence radius");
+    }
+    Ok(())
+}
+
+fn read_log(path: &Path) -> anyhow::Result<CarmenLog> {
+    let log = slamkit_io::carmen::read_carmen(path)
+        .with_context(|| format!("reading log {}", path.display()))?;
+    if log.scans.is_empty() {
+        anyhow::bail!("{} holds no laser scan", path.display());
+    }
+    Ok(log)
+}
+
+fn write_map(map: &OccupancyGrid, out: &Path) -> anyhow::Result<()> {
+    save_map_yaml(map, &out.join("map.yaml"))?;
+    save_png(map, &out.join("map.png"))?;
+    Ok(())
+}
