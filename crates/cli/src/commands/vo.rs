@@ -1,10 +1,17 @@
-//! `slamkit vo`: visual odometry on an RGB-D or stereo dataset folder.
+//! `slamkit vo`: visual odometry on an RGB-D or stereo dataset folder, with the trajectory,
+//! ground truth, point cloud and report written to the output folder.
 
-use crate::output::not_yet;
-use std::path::PathBuf;
+use crate::output::{peak_rss_bytes, prepare_out_dir, progress_bar, timings_json, write_report};
+use anyhow::Context;
+use serde_json::json;
+use slamkit_io::{Dataset, DatasetFormat as IoFormat};
+use slamkit_vo::depth::DepthRegistration;
+use slamkit_vo::{evaluate, FrontendKind, RunOptions, VoConfig};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
 
 /// Dataset folder layouts `slamkit vo` reads.
-#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum DatasetFormat {
     /// TUM RGB-D: rgb.txt, depth.txt, groundtruth.txt.
     Tum,
@@ -39,7 +46,7 @@ pub struct VoArgs {
     /// Feature front end.
     #[arg(long, value_enum, default_value = "klt")]
     pub frontend: Frontend,
-    /// TOML file with configuration overrides.
+    /// TOML file with configuration overrides (fields of slamkit_vo::VoConfig).
     #[arg(long)]
     pub config: Option<PathBuf>,
     /// Play the dataset at its frame rate and drop the frames the pipeline cannot take.
@@ -51,6 +58,162 @@ pub struct VoArgs {
 }
 
 /// Runs `slamkit vo`.
-pub fn run(_args: &VoArgs) -> anyhow::Result<()> {
-    not_yet("vo", "visual odometry, issue #4")
+pub fn run(args: &VoArgs) -> anyhow::Result<()> {
+    let started = Instant::now();
+    let format = match args.format {
+        Some(f) => f,
+        None => detect_format(&args.dataset_dir)?,
+    };
+    let config = load_config(args, format)?;
+    let out = prepare_out_dir(&args.out)?;
+    let dataset = Dataset::open(&args.dataset_dir, io_format(format))
+        .with_context(|| format!("opening {}", args.dataset_dir.display()))?;
+    let bar = progress_bar(dataset.len() as u64, "vo");
+    let options = RunOptions {
+        realtime: args.realtime,
+    };
+    let result = slamkit_vo::run(&dataset, &config, options, || bar.inc(1))?;
+    bar.finish_and_clear();
+
+    let traj_path = out.join("trajectory.tum");
+    slamkit_io::trajectory_file::write_tum(&traj_path, &result.trajectory)?;
+    if format == DatasetFormat::Kitti {
+        slamkit_io::trajectory_file::write_kitti(
+            &out.join("trajectory.kitti"),
+            &result.trajectory,
+        )?;
+    }
+    let metrics = match dataset.ground_truth() {
+        Some(gt) => {
+            dataset.write_ground_truth_tum(&out.join("groundtruth.tum"))?;
+            let m = evaluate(&result.trajectory, gt).context("scoring against the ground truth")?;
+            serde_json::to_value(m)?
+        }
+        None => json!(null),
+    };
+    result.map.write_ply(&out.join("cloud.ply"))?;
+    let report = json!({
+        "input": args.dataset_dir,
+        "format": format!("{format:?}"),
+        "realtime": args.realtime,
+        "config": config,
+        "frames": result.stats,
+        "map": { "points": result.map.len(), "dropped_points": result.map.dropped() },
+        "wall_seconds": started.elapsed().as_secs_f64(),
+        "timings_ms": timings_json(&result.timings),
+        "peak_rss_bytes": peak_rss_bytes(),
+        "metrics": metrics,
+        "frame_status": result.frames,
+    });
+    write_report(&out, &report)?;
+    print_summary(&out, &report);
+    Ok(())
+}
+
+fn io_format(f: DatasetFormat) -> IoFormat {
+    match f {
+        DatasetFormat::Tum => IoFormat::Tum,
+        DatasetFormat::Kitti => IoFormat::Kitti,
+        DatasetFormat::SevenScenes => IoFormat::SevenScenes,
+        DatasetFormat::Redwood => IoFormat::Redwood,
+        DatasetFormat::Euroc => IoFormat::Euroc,
+    }
+}
+
+/// Tells the layout from the folder's content.
+fn detect_format(dir: &Path) -> anyhow::Result<DatasetFormat> {
+    let has = |p: &str| dir.join(p).exists();
+    if has("image_0") && has("calib.txt") {
+        return Ok(DatasetFormat::Kitti);
+    }
+    if has("rgb.txt") && has("depth.txt") {
+        return Ok(DatasetFormat::Tum);
+    }
+    if has("cam0") && has("cam1") {
+        return Ok(DatasetFormat::Euroc);
+    }
+    if has("color") && has("depth") {
+        return Ok(DatasetFormat::Redwood);
+    }
+    let seven = std::fs::read_dir(dir)
+        .with_context(|| format!("reading {}", dir.display()))?
+        .filter_map(Result::ok)
+        .any(|e| {
+            e.file_name().to_string_lossy().ends_with(".color.jpg")
+                || e.file_name().to_string_lossy().ends_with(".color.png")
+        });
+    if seven {
+        return Ok(DatasetFormat::SevenScenes);
+    }
+    anyhow::bail!("cannot tell the layout of {}: pass --format", dir.display())
+}
+
+/// The preset for the layout and front end, with the `--config` file's fields on top.
+/// 7-Scenes colour is not registered to depth (CAMERA_SOURCES.md §7): its preset warps depth
+/// into a Kinect v1 colour camera.
+fn load_config(args: &VoArgs, format: DatasetFormat) -> anyhow::Result<VoConfig> {
+    let mut preset = VoConfig {
+        frontend: match args.frontend {
+            Frontend::Klt => FrontendKind::Klt,
+            Frontend::Orb => FrontendKind::Orb,
+        },
+        ..VoConfig::default()
+    };
+    if format == DatasetFormat::SevenScenes {
+        preset.register_depth = Some(DepthRegistration::default());
+    }
+    let Some(path) = &args.config else {
+        return Ok(preset);
+    };
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let overrides: toml::Table =
+        toml::from_str(&text).with_context(|| format!("parsing config {}", path.display()))?;
+    let mut merged = toml::Table::try_from(&preset).context("serialising the preset")?;
+    merge(&mut merged, overrides);
+    let config: VoConfig = merged
+        .try_into()
+        .with_context(|| format!("parsing config {}", path.display()))?;
+    config
+        .validate()
+        .with_context(|| format!("checking config {}", path.display()))?;
+    Ok(config)
+}
+
+/// Overwrites `base` with `top`, table by table.
+fn merge(base: &mut toml::Table, top: toml::Table) {
+    for (k, v) in top {
+        match (base.get_mut(&k), v) {
+            (Some(toml::Value::Table(b)), toml::Value::Table(t)) => merge(b, t),
+            (_, v) => {
+                base.insert(k, v);
+            }
+        }
+    }
+}
+
+fn print_summary(out: &Path, report: &serde_json::Value) {
+    let f = &report["frames"];
+    println!(
+        "vo: {} frames, {} processed, {} failed, {} dropped",
+        f["frames"], f["processed"], f["failed"], f["dropped"]
+    );
+    if let Some(t) = report["timings_ms"].get("frame") {
+        println!(
+            "per-frame time: median {:.1} ms, p95 {:.1} ms",
+            t["median_ms"].as_f64().unwrap_or(f64::NAN),
+            t["p95_ms"].as_f64().unwrap_or(f64::NAN)
+        );
+    }
+    let m = &report["metrics"];
+    if !m.is_null() {
+        println!(
+            "ATE RMSE {:.4} m, RPE RMSE {:.4} m, end-point drift {:.2} % of {:.1} m",
+            m["ate"]["rmse"].as_f64().unwrap_or(f64::NAN),
+            m["rpe"]["rmse"].as_f64().unwrap_or(f64::NAN),
+            m["end_point_drift_percent"].as_f64().unwrap_or(f64::NAN),
+            m["path_length_m"].as_f64().unwrap_or(f64::NAN)
+        );
+    }
+    println!("outputs in {}", out.display());
 }

@@ -1,0 +1,138 @@
+//! The visual-odometry configuration: one struct of per-stage structs, every field with its
+//! published default, loadable from TOML (fields not given keep their defaults).
+
+use serde::{Deserialize, Serialize};
+use slamkit_vision::{
+    ClaheConfig, KltConfig, MatchConfig, OrbConfig, ShiTomasiConfig, StereoConfig,
+};
+
+use crate::depth::{DepthConfig, DepthRegistration};
+use crate::error::VoError;
+use crate::local_map::LocalMapConfig;
+use crate::motion::MotionConfig;
+use crate::voxel_map::VoxelMapConfig;
+
+/// Which features are tracked.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FrontendKind {
+    /// Shi–Tomasi corners followed by pyramidal KLT.
+    Klt,
+    /// ORB features matched by Hamming distance.
+    Orb,
+}
+
+/// What the current frame is matched against.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TrackingMode {
+    /// The last successfully tracked frame only.
+    FrameToFrame,
+    /// Features of the recent key frames, each position averaged over its observations.
+    LocalMap,
+}
+
+/// Everything visual odometry can be told.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct VoConfig {
+    /// Feature front end.
+    pub frontend: FrontendKind,
+    /// Frame-to-frame or local-map tracking.
+    pub mode: TrackingMode,
+    /// Apply CLAHE (on CIELAB L for colour input) before detection.
+    pub use_clahe: bool,
+    /// CLAHE settings (OpenCV `createCLAHE` defaults).
+    pub clahe: ClaheConfig,
+    /// Frames whose mean grey level is below this are too dark to track \[grey levels\].
+    pub min_mean_intensity: f64,
+    /// Corner detection for the KLT front end.
+    pub shi_tomasi: ShiTomasiConfig,
+    /// KLT tracking.
+    pub klt: KltConfig,
+    /// Features the KLT front end keeps tracking; new corners top the set up to this.
+    pub max_features: usize,
+    /// ORB detection.
+    pub orb: OrbConfig,
+    /// ORB descriptor matching.
+    pub matching: MatchConfig,
+    /// Depth lookup of RGB-D features.
+    pub depth: DepthConfig,
+    /// Warp the depth image into the colour camera first (unregistered RGB-D, e.g. 7-Scenes).
+    pub register_depth: Option<DepthRegistration>,
+    /// Stereo matching of features.
+    pub stereo: StereoConfig,
+    /// Farthest stereo point used \[m\].
+    pub max_stereo_depth_m: f64,
+    /// Motion estimation.
+    pub motion: MotionConfig,
+    /// Local map model.
+    pub local_map: LocalMapConfig,
+    /// Failed frames in a row after which tracking restarts from the current frame at the last
+    /// pose.
+    pub max_consecutive_failures: usize,
+    /// World point map.
+    pub voxel_map: VoxelMapConfig,
+}
+
+impl Default for VoConfig {
+    fn default() -> Self {
+        Self {
+            frontend: FrontendKind::Klt,
+            mode: TrackingMode::LocalMap,
+            use_clahe: false,
+            clahe: ClaheConfig::default(),
+            min_mean_intensity: 12.0,
+            shi_tomasi: ShiTomasiConfig::default(),
+            klt: KltConfig::default(),
+            max_features: 400,
+            orb: OrbConfig::default(),
+            matching: MatchConfig::default(),
+            depth: DepthConfig::default(),
+            register_depth: None,
+            stereo: StereoConfig::default(),
+            max_stereo_depth_m: 40.0,
+            motion: MotionConfig::default(),
+            local_map: LocalMapConfig::default(),
+            max_consecutive_failures: 5,
+            voxel_map: VoxelMapConfig::default(),
+        }
+    }
+}
+
+impl VoConfig {
+    /// Checks the ranges this crate relies on (the kernels check their own).
+    ///
+    /// # Errors
+    /// [`VoError::InvalidConfig`] naming the first bad field.
+    pub fn validate(&self) -> Result<(), VoError> {
+        self.motion.validate()?;
+        self.local_map.validate()?;
+        self.voxel_map.validate()?;
+        if self.max_features == 0 {
+            return Err(VoError::config("max_features", 0, "must be > 0"));
+        }
+        if !(self.depth.min_depth_m >= 0.0 && self.depth.max_depth_m > self.depth.min_depth_m) {
+            return Err(VoError::config(
+                "depth.max_depth_m",
+                self.depth.max_depth_m,
+                "must be > min_depth_m >= 0",
+            ));
+        }
+        if self.max_stereo_depth_m.is_nan() || self.max_stereo_depth_m <= 0.0 {
+            return Err(VoError::config(
+                "max_stereo_depth_m",
+                self.max_stereo_depth_m,
+                "must be > 0",
+            ));
+        }
+        if !self.min_mean_intensity.is_finite() {
+            return Err(VoError::config(
+                "min_mean_intensity",
+                self.min_mean_intensity,
+                "must be finite",
+            ));
+        }
+        Ok(())
+    }
+}

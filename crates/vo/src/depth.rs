@@ -1,0 +1,234 @@
+//! Depth for features of an RGB-D frame.
+//!
+//! A feature's depth is read at its nearest pixel of the depth image; it is rejected when the
+//! pixel has no depth (0: hole, out of range) or when its 3×3 neighbourhood spans a depth edge
+//! (foreground and background mixed: the corner then has no single 3D position — the
+//! standard rejection of KinectFusion-era RGB-D odometry, e.g. Kerl, Sturm & Cremers, ICRA 2013).
+//!
+//! When colour and depth come from two unregistered cameras (Kinect v1 in 7-Scenes; see
+//! `CAMERA_SOURCES.md` §7), [`register_depth`] first warps the depth image into the colour
+//! camera: every depth pixel is lifted to 3D with the depth intrinsics, moved by
+//! `color_from_depth` and projected with the colour intrinsics, keeping the nearest depth per
+//! colour pixel (a z-buffer) and filling the one-pixel gaps the forward warp leaves.
+
+use nalgebra::{Point2, Point3, Vector3};
+use serde::{Deserialize, Serialize};
+use slamkit_core::camera::Intrinsics;
+use slamkit_core::image::Image;
+use slamkit_core::Pose3;
+
+/// Depth-lookup settings.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DepthConfig {
+    /// Nearest usable depth \[m\].
+    pub min_depth_m: f64,
+    /// Farthest usable depth \[m\] (RGB-D depth noise grows with the square of depth).
+    pub max_depth_m: f64,
+    /// Largest depth spread in a feature's 3×3 neighbourhood, as a fraction of its depth.
+    pub max_edge_ratio: f64,
+}
+
+impl Default for DepthConfig {
+    fn default() -> Self {
+        Self {
+            min_depth_m: 0.3,
+            max_depth_m: 6.0,
+            max_edge_ratio: 0.05,
+        }
+    }
+}
+
+/// How the depth camera sits relative to the colour camera of an unregistered RGB-D sensor.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DepthRegistration {
+    /// Colour camera focal lengths and principal point `[fx, fy, cx, cy]` \[px\].
+    pub color_intrinsics: [f64; 4],
+    /// Translation of `color_from_depth` \[m\] (the cameras are taken to be parallel).
+    pub color_from_depth_m: [f64; 3],
+}
+
+impl Default for DepthRegistration {
+    /// A Kinect v1: colour f = 525 px at the image centre, the colour camera 2.5 cm beside the
+    /// depth (IR) camera (`CAMERA_SOURCES.md` §7 measured f ≈ 525–540 px for 7-Scenes).
+    fn default() -> Self {
+        Self {
+            color_intrinsics: [525.0, 525.0, 319.5, 239.5],
+            color_from_depth_m: [-0.025, 0.0, 0.0],
+        }
+    }
+}
+
+impl DepthRegistration {
+    /// `color_from_depth` as a pose.
+    pub fn color_from_depth(&self) -> Pose3 {
+        let [x, y, z] = self.color_from_depth_m;
+        Pose3::translation(x, y, z)
+    }
+
+    /// The colour camera intrinsics, with the size of the depth image.
+    pub fn color_camera(&self, width: usize, height: usize) -> Intrinsics {
+        let [fx, fy, cx, cy] = self.color_intrinsics;
+        Intrinsics {
+            fx,
+            fy,
+            cx,
+            cy,
+            width,
+            height,
+        }
+    }
+}
+
+/// Warps `depth_m` (seen by a camera with intrinsics `depth_k`) into the colour camera described
+/// by `reg`; pixels that receive no depth are 0.
+pub fn register_depth(
+    depth_m: &Image<f32>,
+    depth_k: &Intrinsics,
+    reg: &DepthRegistration,
+) -> Image<f32> {
+    let (w, h) = (depth_m.width(), depth_m.height());
+    let color_k = reg.color_camera(w, h);
+    let t = Vector3::from(reg.color_from_depth_m);
+    let mut out = vec![f32::INFINITY; w * h];
+    for (y, row) in depth_m.data().chunks_exact(w.max(1)).enumerate() {
+        let ny = (y as f64 - depth_k.cy) / depth_k.fy;
+        for (x, &d) in row.iter().enumerate() {
+            if !(d > 0.0 && d.is_finite()) {
+                continue;
+            }
+            let z = f64::from(d);
+            let p = Vector3::new((x as f64 - depth_k.cx) / depth_k.fx * z, ny * z, z) + t;
+            if p.z <= 0.0 {
+                continue;
+            }
+            let u = (color_k.fx * p.x / p.z + color_k.cx).round();
+            let v = (color_k.fy * p.y / p.z + color_k.cy).round();
+            if u < 0.0 || v < 0.0 || u >= w as f64 || v >= h as f64 {
+                continue;
+            }
+            let i = v as usize * w + u as usize;
+            if let Some(o) = out.get_mut(i) {
+                *o = o.min(p.z as f32);
+            }
+        }
+    }
+    fill_gaps(&mut out, w);
+    for v in &mut out {
+        if !v.is_finite() {
+            *v = 0.0;
+        }
+    }
+    Image::from_vec(w, h, out).unwrap_or_else(|| Image::filled(w, h, 0.0))
+}
+
+/// Fills isolated empty pixels (a forward warp that magnifies leaves one-pixel cracks) with the
+/// nearer of their left/right or up/down neighbours when those agree within 5 %.
+fn fill_gaps(z: &mut [f32], w: usize) {
+    if w < 3 {
+        return;
+    }
+    let h = z.len() / w;
+    let src = z.to_vec();
+    for y in 1..h.saturating_sub(1) {
+        for x in 1..w - 1 {
+            let i = y * w + x;
+            if src[i].is_finite() {
+                continue;
+            }
+            for (a, b) in [(src[i - 1], src[i + 1]), (src[i - w], src[i + w])] {
+                if a.is_finite() && b.is_finite() && (a - b).abs() <= 0.05 * a.min(b) {
+                    z[i] = a.min(b);
+                    break;
+                }
+            }
+        }
+    }
+}
+
+/// Depth \[m\] of the feature at `px`, or `None` (hole, out of range, depth edge).
+pub fn depth_at(depth_m: &Image<f32>, px: Point2<f64>, config: &DepthConfig) -> Option<f64> {
+    if !(px.x.is_finite() && px.y.is_finite()) {
+        return None;
+    }
+    let (x, y) = (px.x.round(), px.y.round());
+    if x < 1.0 || y < 1.0 || x >= depth_m.width() as f64 - 1.0 || y >= depth_m.height() as f64 - 1.0
+    {
+        return None;
+    }
+    let (x, y) = (x as usize, y as usize);
+    let centre = f64::from(*depth_m.get(x, y)?);
+    if !(centre >= config.min_depth_m && centre <= config.max_depth_m) {
+        return None;
+    }
+    let (mut lo, mut hi) = (centre, centre);
+    for yy in y - 1..=y + 1 {
+        for xx in x - 1..=x + 1 {
+            let d = f64::from(*depth_m.get(xx, yy)?);
+            if d <= 0.0 {
+                continue;
+            }
+            lo = lo.min(d);
+            hi = hi.max(d);
+        }
+    }
+    (hi - lo <= config.max_edge_ratio * centre).then_some(centre)
+}
+
+/// The camera-frame point of the feature at `px` with depth `z` \[m\] (undistorted pinhole).
+pub fn lift(k: &Intrinsics, px: Point2<f64>, z: f64) -> Point3<f64> {
+    Point3::new((px.x - k.cx) / k.fx * z, (px.y - k.cy) / k.fy * z, z)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn k() -> Intrinsics {
+        Intrinsics {
+            fx: 100.0,
+            fy: 100.0,
+            cx: 20.0,
+            cy: 15.0,
+            width: 40,
+            height: 30,
+        }
+    }
+
+    #[test]
+    fn holes_edges_and_range_are_rejected() {
+        let mut img = Image::filled(40, 30, 2.0f32);
+        let c = DepthConfig::default();
+        assert_eq!(depth_at(&img, Point2::new(10.2, 10.4), &c), Some(2.0));
+        *img.get_mut(10, 10).unwrap() = 0.0;
+        assert_eq!(depth_at(&img, Point2::new(10.0, 10.0), &c), None);
+        *img.get_mut(21, 20).unwrap() = 3.0;
+        assert_eq!(depth_at(&img, Point2::new(20.0, 20.0), &c), None);
+        assert_eq!(depth_at(&img, Point2::new(0.0, 5.0), &c), None);
+        assert_eq!(depth_at(&img, Point2::new(f64::NAN, 5.0), &c), None);
+        let far = Image::filled(40, 30, 9.0f32);
+        assert_eq!(depth_at(&far, Point2::new(10.0, 10.0), &c), None);
+    }
+
+    #[test]
+    fn registration_moves_a_plane_by_the_baseline() {
+        let depth = Image::filled(40, 30, 2.0f32);
+        let reg = DepthRegistration {
+            color_intrinsics: [100.0, 100.0, 20.0, 15.0],
+            color_from_depth_m: [-0.2, 0.0, 0.0],
+        };
+        let out = register_depth(&depth, &k(), &reg);
+        // a shift of −0.2 m at 2 m is −10 px: the right 10 columns receive nothing
+        assert_eq!(*out.get(35, 10).unwrap(), 0.0);
+        assert_eq!(*out.get(10, 10).unwrap(), 2.0);
+        let all_zero = register_depth(&Image::filled(40, 30, 0.0f32), &k(), &reg);
+        assert!(all_zero.data().iter().all(|&v| v == 0.0));
+    }
+
+    #[test]
+    fn lift_inverts_projection() {
+        let p = lift(&k(), Point2::new(30.0, 5.0), 2.0);
+        assert!((p - Point3::new(0.2, -0.2, 2.0)).norm() < 1e-12);
+    }
+}

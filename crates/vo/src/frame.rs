@@ -1,0 +1,317 @@
+//! Stage 2 of the pipeline: a decoded frame becomes a [`PreparedFrame`] — grey image (CLAHE
+//! on CIELAB L for colour input when configured), darkness check, the depth source (registered
+//! depth image or the right image), the KLT pyramid or ORB features, and the detected features
+//! lifted to 3D.
+
+use nalgebra::{Point2, Point3};
+use slamkit_core::camera::Intrinsics;
+use slamkit_core::image::{GrayImage, Image, RgbImage};
+use slamkit_vision::color::{rgb_to_gray, rgb_to_lab_planes};
+use slamkit_vision::{shi_tomasi, Clahe, Descriptor, KltPyramid, Orb, StereoPair};
+
+use crate::config::{FrontendKind, VoConfig};
+use crate::depth::{depth_at, lift, register_depth};
+use crate::error::VoError;
+use crate::FailReason;
+
+/// Camera-frame points and their RGB colours, index-aligned.
+pub type ColoredPoints = (Vec<Point3<f64>>, Vec<[u8; 3]>);
+
+/// The decoded images of one frame.
+#[derive(Debug, Clone)]
+pub enum SensorImages {
+    /// Colour and depth \[m\] (0 = no depth), depth in the depth camera.
+    Rgbd {
+        /// Colour image.
+        color: RgbImage,
+        /// Depth image \[m\].
+        depth_m: Image<f32>,
+    },
+    /// A rectified stereo pair.
+    Stereo {
+        /// Left image (the tracked one).
+        left: GrayImage,
+        /// Right image.
+        right: GrayImage,
+    },
+}
+
+/// The camera rig: what the tracked image's pixels mean and where depth comes from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Rig {
+    /// An RGB-D camera.
+    Rgbd {
+        /// Intrinsics of the colour camera as given by the dataset.
+        color: Intrinsics,
+        /// Intrinsics of the depth camera.
+        depth: Intrinsics,
+    },
+    /// A rectified stereo camera.
+    Stereo {
+        /// Intrinsics of the left camera.
+        left: Intrinsics,
+        /// Distance between the optical centres \[m\].
+        baseline_m: f64,
+    },
+}
+
+/// Where the 3D position of a pixel of the tracked image comes from.
+#[derive(Debug, Clone)]
+enum DepthSource {
+    /// Depth \[m\] registered to the tracked image.
+    Image(Image<f32>),
+    /// The right image of a rectified pair.
+    Right(GrayImage),
+}
+
+/// Detected features of a frame.
+#[derive(Debug, Clone, Default)]
+pub struct Features {
+    /// Pixel positions in the tracked image.
+    pub pixels: Vec<Point2<f64>>,
+    /// Camera-frame positions \[m\]; `None` without depth.
+    pub points: Vec<Option<Point3<f64>>>,
+    /// ORB descriptors (empty for the KLT front end).
+    pub descriptors: Vec<Descriptor>,
+}
+
+/// A frame ready for motion estimation.
+#[derive(Debug, Clone)]
+pub struct PreparedFrame {
+    /// Position in the sequence.
+    pub index: usize,
+    /// Time stamp \[s\].
+    pub timestamp: f64,
+    /// Intrinsics of the tracked image.
+    pub camera: Intrinsics,
+    /// The KLT pyramid (KLT front end).
+    pub pyramid: Option<KltPyramid>,
+    /// Detected features.
+    pub features: Features,
+    /// Points for the world map (camera frame) and their colours.
+    pub map_points: ColoredPoints,
+    gray: GrayImage,
+    depth: DepthSource,
+    baseline_m: f64,
+}
+
+/// Turns decoded frames into [`PreparedFrame`]s; holds the reusable kernels.
+#[derive(Debug)]
+pub struct Preprocessor {
+    config: VoConfig,
+    rig: Rig,
+    clahe: Option<Clahe>,
+    orb: Option<Orb>,
+}
+
+impl Preprocessor {
+    /// Builds the kernels of `config` for `rig`.
+    ///
+    /// # Errors
+    /// [`VoError`] for an invalid configuration.
+    pub fn new(config: &VoConfig, rig: Rig) -> Result<Self, VoError> {
+        config.validate()?;
+        let clahe = config
+            .use_clahe
+            .then(|| Clahe::new(config.clahe.clone()))
+            .transpose()?;
+        let orb = (config.frontend == FrontendKind::Orb)
+            .then(|| Orb::new(config.orb.clone()))
+            .transpose()?;
+        Ok(Self {
+            config: config.clone(),
+            rig,
+            clahe,
+            orb,
+        })
+    }
+
+    /// Intrinsics of the tracked image (the colour camera after registration).
+    pub fn camera(&self) -> Intrinsics {
+        match (&self.rig, &self.config.register_depth) {
+            (Rig::Rgbd { color, .. }, Some(reg)) => reg.color_camera(color.width, color.height),
+            (Rig::Rgbd { color, .. }, None) => *color,
+            (Rig::Stereo { left, .. }, _) => *left,
+        }
+    }
+
+    /// Prepares one frame.
+    ///
+    /// # Errors
+    /// A [`FailReason`] for a frame that cannot be tracked (too dark, image sizes that do not
+    /// fit, no depth at all).
+    pub fn prepare(
+        &mut self,
+        index: usize,
+        timestamp: f64,
+        images: SensorImages,
+    ) -> Result<PreparedFrame, FailReason> {
+        let camera = self.camera();
+        let (gray, depth, colors) = match images {
+            SensorImages::Rgbd { color, depth_m } => {
+                if (color.width(), color.height()) != (depth_m.width(), depth_m.height()) {
+                    return Err(FailReason::SizeMismatch);
+                }
+                let depth = match (&self.rig, &self.config.register_depth) {
+                    (Rig::Rgbd { depth: k, .. }, Some(reg)) => register_depth(&depth_m, k, reg),
+                    _ => depth_m,
+                };
+                let gray = self.gray_of(&color);
+                (gray, DepthSource::Image(depth), Some(color))
+            }
+            SensorImages::Stereo { left, right } => {
+                if (left.width(), left.height()) != (right.width(), right.height()) {
+                    return Err(FailReason::SizeMismatch);
+                }
+                let left = match &mut self.clahe {
+                    Some(c) => c.apply_gray(&left),
+                    None => left,
+                };
+                (left, DepthSource::Right(right), None)
+            }
+        };
+        if (gray.width(), gray.height()) != (camera.width, camera.height) {
+            return Err(FailReason::SizeMismatch);
+        }
+        let mean = gray.data().iter().map(|&v| f64::from(v)).sum::<f64>()
+            / gray.data().len().max(1) as f64;
+        if mean < self.config.min_mean_intensity {
+            return Err(FailReason::TooDark { mean_grey: mean });
+        }
+        let baseline_m = match self.rig {
+            Rig::Stereo { baseline_m, .. } => baseline_m,
+            Rig::Rgbd { .. } => 0.0,
+        };
+        let mut frame = PreparedFrame {
+            index,
+            timestamp,
+            camera,
+            pyramid: None,
+            features: Features::default(),
+            map_points: (Vec::new(), Vec::new()),
+            gray,
+            depth,
+            baseline_m,
+        };
+        self.detect(&mut frame)?;
+        frame.map_points = frame.map_points(colors.as_ref(), &self.config);
+        Ok(frame)
+    }
+
+    fn gray_of(&mut self, color: &RgbImage) -> GrayImage {
+        match &mut self.clahe {
+            Some(c) => c.apply_gray(&rgb_to_lab_planes(color).0),
+            None => rgb_to_gray(color),
+        }
+    }
+
+    fn detect(&self, frame: &mut PreparedFrame) -> Result<(), FailReason> {
+        let (pixels, descriptors): (Vec<Point2<f64>>, Vec<Descriptor>) = match &self.orb {
+            Some(orb) => {
+                let f = orb.detect_and_compute(&frame.gray);
+                let px = f
+                    .keypoints
+                    .iter()
+                    .map(|k| Point2::new(f64::from(k.x), f64::from(k.y)))
+                    .collect();
+                (px, f.descriptors)
+            }
+            None => {
+                frame.pyramid = Some(KltPyramid::new(&frame.gray, self.config.klt.max_level));
+                let corners = shi_tomasi(&frame.gray, &self.config.shi_tomasi)
+                    .map_err(|e| FailReason::Kernel(e.to_string()))?;
+                let px = corners
+                    .iter()
+                    .map(|c| Point2::new(f64::from(c.x), f64::from(c.y)))
+                    .collect();
+                (px, Vec::new())
+            }
+        };
+        let points = frame.lift(&pixels, &self.config)?;
+        frame.features = Features {
+            pixels,
+            points,
+            descriptors,
+        };
+        Ok(())
+    }
+}
+
+impl PreparedFrame {
+    /// The grey image features are tracked in.
+    pub fn gray(&self) -> &GrayImage {
+        &self.gray
+    }
+
+    /// The 3D points (camera frame) of `pixels`, from depth or stereo; `None` where unknown.
+    ///
+    /// # Errors
+    /// [`FailReason::Kernel`] when the stereo matcher rejects its configuration.
+    pub fn lift(
+        &self,
+        pixels: &[Point2<f64>],
+        config: &VoConfig,
+    ) -> Result<Vec<Option<Point3<f64>>>, FailReason> {
+        let k = &self.camera;
+        match &self.depth {
+            DepthSource::Image(depth) => Ok(pixels
+                .iter()
+                .map(|&px| depth_at(depth, px, &config.depth).map(|z| lift(k, px, z)))
+                .collect()),
+            DepthSource::Right(right) => {
+                let pair = StereoPair::new(&self.gray, right)
+                    .map_err(|e| FailReason::Kernel(e.to_string()))?;
+                let pts: Vec<(f32, f32)> =
+                    pixels.iter().map(|p| (p.x as f32, p.y as f32)).collect();
+                let matches = pair
+                    .match_points(&pts, &config.stereo)
+                    .map_err(|e| FailReason::Kernel(e.to_string()))?;
+                Ok(pixels
+                    .iter()
+                    .zip(matches)
+                    .map(|(&px, m)| {
+                        let z = k.fx * self.baseline_m / f64::from(m?.disparity_px);
+                        (z > 0.0 && z <= config.max_stereo_depth_m).then(|| lift(k, px, z))
+                    })
+                    .collect())
+            }
+        }
+    }
+
+    /// Map points: every 4th depth pixel with its colour (RGB-D), the features with depth
+    /// (stereo, grey).
+    fn map_points(&self, color: Option<&RgbImage>, config: &VoConfig) -> ColoredPoints {
+        match (&self.depth, color) {
+            (DepthSource::Image(depth), Some(color)) => {
+                let mut out = (Vec::new(), Vec::new());
+                for y in (0..depth.height()).step_by(4) {
+                    for x in (0..depth.width()).step_by(4) {
+                        let (Some(&z), Some(&c)) = (depth.get(x, y), color.get(x, y)) else {
+                            continue;
+                        };
+                        let z = f64::from(z);
+                        if z >= config.depth.min_depth_m && z <= config.depth.max_depth_m {
+                            out.0
+                                .push(lift(&self.camera, Point2::new(x as f64, y as f64), z));
+                            out.1.push(c);
+                        }
+                    }
+                }
+                out
+            }
+            _ => {
+                let f = &self.features;
+                f.points
+                    .iter()
+                    .zip(&f.pixels)
+                    .filter_map(|(p, px)| {
+                        let g = *self
+                            .gray
+                            .get(px.x.round() as usize, px.y.round() as usize)?;
+                        p.map(|p| (p, [g; 3]))
+                    })
+                    .unzip()
+            }
+        }
+    }
+}

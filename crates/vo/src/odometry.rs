@@ -1,0 +1,364 @@
+//! Stage 3 of the pipeline: the motion of each frame against its reference, and the
+//! reference's upkeep.
+//!
+//! Frame to frame, the reference is the last successfully tracked frame; with the local map
+//! ([`crate::local_map`]) the reference points are the map's averaged positions. A failed frame
+//! (see [`crate::motion`]) keeps the last pose and does NOT replace the reference: the next frame
+//! is matched against the same reference — the fix the seed made to MRPT's RGB-D VO demo, whose
+//! reference was overwritten by the bad frame so one glitch broke tracking. Only after
+//! `max_consecutive_failures` failures in a row does tracking restart from the current frame.
+
+use nalgebra::{Point2, Point3};
+use serde::Serialize;
+use slamkit_core::Pose3;
+use slamkit_vision::klt::track;
+use slamkit_vision::{match_descriptors, Descriptor, KltPyramid};
+
+use crate::config::{FrontendKind, TrackingMode, VoConfig};
+use crate::frame::PreparedFrame;
+use crate::local_map::LocalMap;
+use crate::motion::{estimate_motion, Correspondence, MotionFailure};
+
+/// Matched reference features (with the descriptor to refresh them) and their pixels in the
+/// current frame, index-aligned.
+type Matches = (Vec<(RefFeature, Option<Descriptor>)>, Vec<Point2<f64>>);
+
+/// Why a frame could not be tracked.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub enum FailReason {
+    /// The images could not be read or decoded.
+    Unreadable(String),
+    /// The images do not have the sizes of the calibration or of each other.
+    SizeMismatch,
+    /// The mean grey level is below the configured minimum.
+    TooDark {
+        /// Mean grey level.
+        mean_grey: f64,
+    },
+    /// Too few features have a depth to start tracking.
+    TooFewFeatures {
+        /// Features with a depth.
+        with_depth: usize,
+    },
+    /// The motion could not be estimated.
+    Motion(MotionFailure),
+    /// An image kernel rejected its input.
+    Kernel(String),
+}
+
+/// What happened to one frame.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub enum FrameStatus {
+    /// The first usable frame (or a restart): it became the reference.
+    Initialised {
+        /// Features with depth.
+        features: usize,
+    },
+    /// Tracked against the reference.
+    Tracked {
+        /// Inliers of the motion.
+        inliers: usize,
+        /// Correspondences tried.
+        correspondences: usize,
+    },
+    /// Not tracked; the pose is the last one.
+    Failed(FailReason),
+}
+
+/// One reference feature.
+#[derive(Debug, Clone)]
+struct RefFeature {
+    pixel: Point2<f64>,
+    point: Point3<f64>,
+    descriptor: Option<Descriptor>,
+    landmark: Option<u64>,
+}
+
+/// The frame the next one is matched against.
+#[derive(Debug)]
+struct Reference {
+    world_from_camera: Pose3,
+    pyramid: Option<KltPyramid>,
+    features: Vec<RefFeature>,
+}
+
+/// A current-frame feature matched to a reference feature or landmark.
+#[derive(Debug, Clone, Copy)]
+struct Candidate {
+    reference_point: Point3<f64>,
+    pixel: Point2<f64>,
+    point: Point3<f64>,
+    descriptor: Option<Descriptor>,
+    landmark: Option<u64>,
+}
+
+/// The tracking state.
+#[derive(Debug)]
+pub struct Odometry {
+    config: VoConfig,
+    world_from_camera: Pose3,
+    reference: Option<Reference>,
+    map: LocalMap,
+    failures_in_row: usize,
+    tracked: usize,
+}
+
+impl Odometry {
+    /// Starts with the first camera at `world_from_camera`.
+    pub fn new(config: &VoConfig, world_from_camera: Pose3) -> Self {
+        Self {
+            config: config.clone(),
+            world_from_camera,
+            reference: None,
+            map: LocalMap::new(),
+            failures_in_row: 0,
+            tracked: 0,
+        }
+    }
+
+    /// The current pose estimate.
+    pub fn pose(&self) -> Pose3 {
+        self.world_from_camera
+    }
+
+    /// Landmarks in the local map.
+    pub fn map_len(&self) -> usize {
+        self.map.len()
+    }
+
+    /// Records a frame that failed before tracking (unreadable, too dark): the pose stays.
+    pub fn skip(&mut self, reason: FailReason) -> FrameStatus {
+        self.failures_in_row += 1;
+        FrameStatus::Failed(reason)
+    }
+
+    /// Tracks `frame`; returns its status (its pose is then [`Odometry::pose`]).
+    pub fn track(&mut self, frame: PreparedFrame) -> FrameStatus {
+        if self.reference.is_none() || self.failures_in_row >= self.config.max_consecutive_failures
+        {
+            return self.initialise(frame);
+        }
+        let candidates = match self.candidates(&frame) {
+            Ok(c) => c,
+            Err(reason) => return self.skip(reason),
+        };
+        let data: Vec<Correspondence> = candidates
+            .iter()
+            .map(|c| Correspondence {
+                reference: c.reference_point,
+                current: c.point,
+                current_px: c.pixel,
+            })
+            .collect();
+        let estimate = match estimate_motion(&data, &frame.camera, &self.config.motion) {
+            Ok(e) => e,
+            Err(f) => return self.skip(FailReason::Motion(f)),
+        };
+        let Some(reference) = self.reference.take() else {
+            return self.skip(FailReason::TooFewFeatures { with_depth: 0 });
+        };
+        self.world_from_camera =
+            reference.world_from_camera * estimate.current_from_reference.inverse();
+        self.failures_in_row = 0;
+        self.tracked += 1;
+        let kept: Vec<Candidate> = estimate
+            .inliers
+            .iter()
+            .filter_map(|&i| candidates.get(i).copied())
+            .collect();
+        self.update_reference(frame, &kept);
+        FrameStatus::Tracked {
+            inliers: estimate.inliers.len(),
+            correspondences: data.len(),
+        }
+    }
+
+    fn initialise(&mut self, frame: PreparedFrame) -> FrameStatus {
+        let with_depth = frame.features.points.iter().flatten().count();
+        if with_depth < self.config.motion.min_inliers {
+            return self.skip(FailReason::TooFewFeatures { with_depth });
+        }
+        self.failures_in_row = 0;
+        self.reference = None;
+        self.update_reference(frame, &[]);
+        FrameStatus::Initialised {
+            features: with_depth,
+        }
+    }
+
+    /// Candidates: reference features found again in `frame`, with their depth there.
+    fn candidates(&self, frame: &PreparedFrame) -> Result<Vec<Candidate>, FailReason> {
+        let Some(reference) = &self.reference else {
+            return Ok(Vec::new());
+        };
+        let ref_from_world = reference.world_from_camera.inverse();
+        let use_map = self.config.mode == TrackingMode::LocalMap;
+        let map_point = |f: &RefFeature| {
+            f.landmark
+                .filter(|_| use_map)
+                .and_then(|id| self.map.get(id))
+                .map_or(f.point, |l| ref_from_world * l.position())
+        };
+        let (matched, pixels): Matches = match self.config.frontend {
+            FrontendKind::Klt => self.klt_matches(reference, frame)?,
+            FrontendKind::Orb if use_map => self.map_matches(frame, &ref_from_world),
+            FrontendKind::Orb => orb_matches(&reference.features, frame, &self.config),
+        };
+        let points = frame.lift(&pixels, &self.config)?;
+        Ok(matched
+            .into_iter()
+            .zip(pixels)
+            .zip(points)
+            .filter_map(|(((f, descriptor), pixel), point)| {
+                Some(Candidate {
+                    reference_point: map_point(&f),
+                    pixel,
+                    point: point?,
+                    descriptor,
+                    landmark: f.landmark,
+                })
+            })
+            .collect())
+    }
+
+    /// KLT: reference features tracked into `frame`.
+    #[allow(clippy::type_complexity)]
+    fn klt_matches(
+        &self,
+        reference: &Reference,
+        frame: &PreparedFrame,
+    ) -> Result<Matches, FailReason> {
+        let (Some(prev), Some(next)) = (&reference.pyramid, &frame.pyramid) else {
+            return Err(FailReason::Kernel("KLT front end without pyramids".into()));
+        };
+        let pts: Vec<(f32, f32)> = reference
+            .features
+            .iter()
+            .map(|f| (f.pixel.x as f32, f.pixel.y as f32))
+            .collect();
+        let tracks = track(prev, next, &pts, &self.config.klt)
+            .map_err(|e| FailReason::Kernel(e.to_string()))?;
+        Ok(reference
+            .features
+            .iter()
+            .zip(tracks)
+            .filter(|(_, t)| t.ok)
+            .map(|(f, t)| {
+                (
+                    (f.clone(), None),
+                    Point2::new(f64::from(t.x), f64::from(t.y)),
+                )
+            })
+            .unzip())
+    }
+
+    /// ORB with the local map: the frame's descriptors matched against the map's.
+    #[allow(clippy::type_complexity)]
+    fn map_matches(&self, frame: &PreparedFrame, ref_from_world: &Pose3) -> Matches {
+        let (ids, descriptors) = self.map.descriptors();
+        let f = &frame.features;
+        match_descriptors(&f.descriptors, &descriptors, &self.config.matching)
+            .into_iter()
+            .filter_map(|m| {
+                let id = *ids.get(m.train_idx)?;
+                let landmark = self.map.get(id)?;
+                let feature = RefFeature {
+                    pixel: Point2::origin(),
+                    point: ref_from_world * landmark.position(),
+                    descriptor: landmark.descriptor().copied(),
+                    landmark: Some(id),
+                };
+                Some((
+                    (feature, f.descriptors.get(m.query_idx).copied()),
+                    *f.pixels.get(m.query_idx)?,
+                ))
+            })
+            .unzip()
+    }
+
+    /// Makes `frame` the reference: the inlier candidates `kept` first (keeping their
+    /// landmarks), topped up with the frame's own features; key frames enter the local map.
+    fn update_reference(&mut self, frame: PreparedFrame, kept: &[Candidate]) {
+        let mut features: Vec<RefFeature> = kept
+            .iter()
+            .map(|c| RefFeature {
+                pixel: c.pixel,
+                point: c.point,
+                descriptor: c.descriptor,
+                landmark: c.landmark,
+            })
+            .collect();
+        let min_d2 = f64::from(self.config.shi_tomasi.min_distance_px).powi(2);
+        let is_orb = self.config.frontend == FrontendKind::Orb;
+        let f = &frame.features;
+        for (i, (px, p)) in f.pixels.iter().zip(&f.points).enumerate() {
+            if !is_orb && features.len() >= self.config.max_features {
+                break;
+            }
+            let Some(point) = p else { continue };
+            let descriptor = f.descriptors.get(i).copied();
+            let duplicate = if is_orb {
+                kept.iter().any(|c| c.pixel == *px)
+            } else {
+                features
+                    .iter()
+                    .any(|g| (g.pixel - px).norm_squared() < min_d2)
+            };
+            if !duplicate {
+                features.push(RefFeature {
+                    pixel: *px,
+                    point: *point,
+                    descriptor,
+                    landmark: None,
+                });
+            }
+        }
+        if self.config.mode == TrackingMode::LocalMap {
+            self.update_map(&mut features, frame.index);
+        }
+        self.reference = Some(Reference {
+            world_from_camera: self.world_from_camera,
+            pyramid: frame.pyramid,
+            features,
+        });
+    }
+
+    fn update_map(&mut self, features: &mut [RefFeature], index: usize) {
+        let keyframe = self.tracked % self.config.local_map.keyframe_every == 0;
+        for f in features.iter_mut() {
+            let world = self.world_from_camera * f.point;
+            match (f.landmark, keyframe) {
+                (Some(id), true) => {
+                    if !self.map.observe(id, world, f.descriptor, index) {
+                        f.landmark = Some(self.map.insert(world, f.descriptor, index));
+                    }
+                }
+                (Some(id), false) => self.map.touch(id, index),
+                (None, true) => f.landmark = Some(self.map.insert(world, f.descriptor, index)),
+                (None, false) => {}
+            }
+        }
+        self.map.prune(index, self.config.local_map.window_frames);
+    }
+}
+
+/// ORB frame to frame: the frame's descriptors matched against the reference's.
+#[allow(clippy::type_complexity)]
+fn orb_matches(reference: &[RefFeature], frame: &PreparedFrame, config: &VoConfig) -> Matches {
+    let train: Vec<Descriptor> = reference.iter().filter_map(|f| f.descriptor).collect();
+    let with_descriptor: Vec<&RefFeature> = reference
+        .iter()
+        .filter(|f| f.descriptor.is_some())
+        .collect();
+    let f = &frame.features;
+    match_descriptors(&f.descriptors, &train, &config.matching)
+        .into_iter()
+        .filter_map(|m| {
+            let r = (*with_descriptor.get(m.train_idx)?).clone();
+            Some((
+                (r, f.descriptors.get(m.query_idx).copied()),
+                *f.pixels.get(m.query_idx)?,
+            ))
+        })
+        .unzip()
+}

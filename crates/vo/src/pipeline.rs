@@ -1,0 +1,345 @@
+//! The threaded pipeline: four threads — read (decode images), prepare (preprocess, detect,
+//! describe, depth), track (motion estimation) and map (voxel point map) — joined by bounded
+//! crossbeam channels, so a slow stage holds the ones before it back instead of letting queues
+//! (and memory) grow.
+//!
+//! In real-time mode the reader plays the dataset at its own clock (frame time stamps) and
+//! offers each frame to the pipeline without waiting: a frame arriving while the prepare stage
+//! is still busy with the previous one is dropped and counted, as a live camera driver would.
+//! Otherwise every frame is processed.
+//!
+//! Per-frame time (`frame` in the timings) is the prepare and track work of one frame, image
+//! decoding excluded; each stage's own time is recorded under its name.
+
+use std::time::{Duration, Instant};
+
+use crossbeam_channel::{bounded, Receiver, Sender, TrySendError};
+use serde::Serialize;
+use slamkit_core::{Pose3, StageTimings, Trajectory};
+use slamkit_io::{Dataset, RgbdSequence, StereoSequence};
+
+use crate::config::VoConfig;
+use crate::error::VoError;
+use crate::frame::{ColoredPoints, PreparedFrame, Preprocessor, Rig, SensorImages};
+use crate::odometry::{FailReason, FrameStatus, Odometry};
+use crate::voxel_map::VoxelMap;
+
+/// How the dataset is played.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct RunOptions {
+    /// Play at the frame rate of the time stamps and drop frames the pipeline cannot take.
+    pub realtime: bool,
+}
+
+/// Frame counts of a run.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct RunStats {
+    /// Frames in the dataset.
+    pub frames: usize,
+    /// Frames read and handed to the pipeline.
+    pub read: usize,
+    /// Frames dropped in real-time mode because the pipeline was busy.
+    pub dropped: usize,
+    /// Frames tracked or used to (re)start tracking.
+    pub processed: usize,
+    /// Frames that failed (unreadable, too dark, no depth, no motion).
+    pub failed: usize,
+    /// Tracking (re)starts.
+    pub initialisations: usize,
+}
+
+/// One frame's outcome.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FrameRecord {
+    /// Position in the dataset.
+    pub index: usize,
+    /// Time stamp \[s\].
+    pub timestamp: f64,
+    /// What happened.
+    pub status: FrameStatus,
+}
+
+/// Everything a run produces.
+#[derive(Debug)]
+pub struct VoRun {
+    /// One pose per frame that went through the pipeline, `world_from_camera` of the dataset's
+    /// camera (the depth camera for registered RGB-D, the left camera for stereo).
+    pub trajectory: Trajectory,
+    /// Per-frame outcomes, in frame order.
+    pub frames: Vec<FrameRecord>,
+    /// Counts.
+    pub stats: RunStats,
+    /// Per-stage timings \[ms\].
+    pub timings: StageTimings,
+    /// The world point map.
+    pub map: VoxelMap,
+}
+
+/// Messages of the read → prepare channel.
+struct Decoded {
+    index: usize,
+    timestamp: f64,
+    images: Result<SensorImages, String>,
+}
+
+/// Messages of the prepare → track channel.
+struct Prepared {
+    index: usize,
+    timestamp: f64,
+    frame: Result<PreparedFrame, FailReason>,
+    prepare_ms: f64,
+}
+
+/// Messages of the track → map channel.
+struct Tracked {
+    world_from_camera: Pose3,
+    points: Option<ColoredPoints>,
+}
+
+/// Runs visual odometry over `dataset`; `progress` is called once per frame that reaches the
+/// mapper.
+///
+/// # Errors
+/// [`VoError`] for an invalid configuration or an empty dataset; bad frames are counted, not
+/// errors.
+pub fn run(
+    dataset: &Dataset,
+    config: &VoConfig,
+    options: RunOptions,
+    progress: impl Fn() + Send + Sync,
+) -> Result<VoRun, VoError> {
+    if dataset.is_empty() {
+        return Err(VoError::EmptyDataset {
+            path: root(dataset),
+        });
+    }
+    let mut pre = Preprocessor::new(config, rig(dataset))?;
+    // the tracked camera's frame vs the dataset's (depth) camera, for registered RGB-D
+    let camera_from_tracked = config
+        .register_depth
+        .as_ref()
+        .map_or(Pose3::identity(), |r| r.color_from_depth().inverse());
+    let first = dataset
+        .ground_truth()
+        .and_then(|gt| gt.poses.first())
+        .map_or(Pose3::identity(), |p| p.pose);
+    let mut odometry = Odometry::new(config, first * camera_from_tracked);
+    let (tx_decoded, rx_decoded) = bounded::<Decoded>(1);
+    let (tx_prepared, rx_prepared) = bounded::<Prepared>(2);
+    let (tx_tracked, rx_tracked) = bounded::<Tracked>(4);
+    let mut map = VoxelMap::new(config.voxel_map.clone());
+    std::thread::scope(|s| {
+        let reader = s.spawn(move || read_stage(dataset, options, &tx_decoded));
+        let preparer = s.spawn(move || prepare_stage(&mut pre, &rx_decoded, &tx_prepared));
+        let mapper = s.spawn(|| map_stage(&mut map, &rx_tracked, &progress));
+        let tracked = track_stage(
+            &mut odometry,
+            &rx_prepared,
+            &tx_tracked,
+            camera_from_tracked,
+        );
+        drop(tx_tracked);
+        let (read, dropped) = reader.join().unwrap_or((0, 0));
+        let mut timings = preparer.join().unwrap_or_default();
+        timings.merge(&mapper.join().unwrap_or_default());
+        let (trajectory, frames, track_timings) = tracked;
+        timings.merge(&track_timings);
+        let failed = frames
+            .iter()
+            .filter(|f| matches!(f.status, FrameStatus::Failed(_)))
+            .count();
+        let initialisations = frames
+            .iter()
+            .filter(|f| matches!(f.status, FrameStatus::Initialised { .. }))
+            .count();
+        let stats = RunStats {
+            frames: dataset.len(),
+            read,
+            dropped,
+            processed: frames.len() - failed,
+            failed,
+            initialisations,
+        };
+        Ok((trajectory, frames, stats, timings))
+    })
+    .map(|(trajectory, frames, stats, timings)| VoRun {
+        trajectory,
+        frames,
+        stats,
+        timings,
+        map,
+    })
+}
+
+fn root(dataset: &Dataset) -> String {
+    match dataset {
+        Dataset::Rgbd(s) => s.root.display().to_string(),
+        Dataset::Stereo(s) => s.root.display().to_string(),
+    }
+}
+
+/// The rig of a dataset.
+pub fn rig(dataset: &Dataset) -> Rig {
+    match dataset {
+        Dataset::Rgbd(s) => Rig::Rgbd {
+            color: s.color_camera.intrinsics,
+            depth: s.depth_camera.intrinsics,
+        },
+        Dataset::Stereo(s) => Rig::Stereo {
+            left: s.left_camera.intrinsics,
+            baseline_m: s.baseline_m(),
+        },
+    }
+}
+
+fn load(dataset: &Dataset, index: usize) -> Option<(f64, Result<SensorImages, String>)> {
+    match dataset {
+        Dataset::Rgbd(s) => load_rgbd(s, index),
+        Dataset::Stereo(s) => load_stereo(s, index),
+    }
+}
+
+fn load_rgbd(s: &RgbdSequence, index: usize) -> Option<(f64, Result<SensorImages, String>)> {
+    let f = s.frames.get(index)?;
+    let images = s
+        .load(f)
+        .map(|i| SensorImages::Rgbd {
+            color: i.color,
+            depth_m: i.depth_m,
+        })
+        .map_err(|e| e.to_string());
+    Some((f.timestamp, images))
+}
+
+fn load_stereo(s: &StereoSequence, index: usize) -> Option<(f64, Result<SensorImages, String>)> {
+    let f = s.frames.get(index)?;
+    let images = s
+        .load(f)
+        .map(|i| SensorImages::Stereo {
+            left: i.left,
+            right: i.right,
+        })
+        .map_err(|e| e.to_string());
+    Some((f.timestamp, images))
+}
+
+/// Reads every frame; returns (frames handed on, frames dropped).
+fn read_stage(dataset: &Dataset, options: RunOptions, tx: &Sender<Decoded>) -> (usize, usize) {
+    let start = Instant::now();
+    let t0 = dataset.timestamps().first().copied().unwrap_or(0.0);
+    let (mut read, mut dropped) = (0, 0);
+    for index in 0..dataset.len() {
+        let Some((timestamp, images)) = load(dataset, index) else {
+            break;
+        };
+        let msg = Decoded {
+            index,
+            timestamp,
+            images,
+        };
+        if options.realtime {
+            let due = Duration::from_secs_f64((timestamp - t0).max(0.0));
+            if let Some(wait) = due.checked_sub(start.elapsed()) {
+                std::thread::sleep(wait);
+            }
+            match tx.try_send(msg) {
+                Ok(()) => read += 1,
+                Err(TrySendError::Full(_)) => dropped += 1,
+                Err(TrySendError::Disconnected(_)) => break,
+            }
+        } else if tx.send(msg).is_ok() {
+            read += 1;
+        } else {
+            break;
+        }
+    }
+    (read, dropped)
+}
+
+fn prepare_stage(
+    pre: &mut Preprocessor,
+    rx: &Receiver<Decoded>,
+    tx: &Sender<Prepared>,
+) -> StageTimings {
+    let mut timings = StageTimings::default();
+    for d in rx {
+        let start = Instant::now();
+        let frame = d
+            .images
+            .map_err(FailReason::Unreadable)
+            .and_then(|images| pre.prepare(d.index, d.timestamp, images));
+        let prepare_ms = start.elapsed().as_secs_f64() * 1e3;
+        timings.record("prepare", prepare_ms);
+        if tx
+            .send(Prepared {
+                index: d.index,
+                timestamp: d.timestamp,
+                frame,
+                prepare_ms,
+            })
+            .is_err()
+        {
+            break;
+        }
+    }
+    timings
+}
+
+fn track_stage(
+    odometry: &mut Odometry,
+    rx: &Receiver<Prepared>,
+    tx: &Sender<Tracked>,
+    camera_from_tracked: Pose3,
+) -> (Trajectory, Vec<FrameRecord>, StageTimings) {
+    let mut timings = StageTimings::default();
+    let mut trajectory = Trajectory::new();
+    let mut frames = Vec::new();
+    let tracked_from_camera = camera_from_tracked.inverse();
+    for p in rx {
+        let start = Instant::now();
+        let (status, points) = match p.frame {
+            Ok(mut frame) => {
+                let points = std::mem::take(&mut frame.map_points);
+                let status = odometry.track(frame);
+                let ok = !matches!(status, FrameStatus::Failed(_));
+                (status, ok.then_some(points))
+            }
+            Err(reason) => (odometry.skip(reason), None),
+        };
+        let track_ms = start.elapsed().as_secs_f64() * 1e3;
+        timings.record("track", track_ms);
+        timings.record("frame", p.prepare_ms + track_ms);
+        let world_from_tracked = odometry.pose();
+        trajectory.push(p.timestamp, world_from_tracked * tracked_from_camera);
+        frames.push(FrameRecord {
+            index: p.index,
+            timestamp: p.timestamp,
+            status,
+        });
+        if tx
+            .send(Tracked {
+                world_from_camera: world_from_tracked,
+                points,
+            })
+            .is_err()
+        {
+            break;
+        }
+    }
+    (trajectory, frames, timings)
+}
+
+fn map_stage(
+    map: &mut VoxelMap,
+    rx: &Receiver<Tracked>,
+    progress: &(impl Fn() + Send + Sync),
+) -> StageTimings {
+    let mut timings = StageTimings::default();
+    for t in rx {
+        if let Some((points, colors)) = &t.points {
+            timings.time("map", || map.insert(&t.world_from_camera, points, colors));
+        }
+        progress();
+    }
+    timings
+}
