@@ -7,7 +7,7 @@
 //! * [`motion`]: a drone flying waypoints `x y z yaw` (tilting as it accelerates) and a
 //!   differential-drive robot; ground truth `world_from_base` at any time.
 //! * Sensors with seeded noise: [`lidar`] (planar, tilting with the robot), [`range_finder`]
-//!   (up and down), [`odometry`] (drifting).
+//!   (up and down), [`odometry`] (drifting), [`attitude`] (roll and pitch).
 //! * [`relations`]: pairs of scans for benchmark relations files.
 //! * [`simulation`]: a robot, a world and its sensors; [`Simulation::lidar_run`] gives the scans,
 //!   ranges and ground truth of a whole run.
@@ -26,6 +26,7 @@
 //! # Ok::<(), slamkit_sim::SimError>(())
 //! ```
 
+pub mod attitude;
 pub mod error;
 pub mod lidar;
 pub mod motion;
@@ -37,6 +38,7 @@ pub mod simulation;
 pub mod texture;
 pub mod world;
 
+pub use attitude::{AttitudeConfig, AttitudeReading};
 pub use error::SimError;
 pub use lidar::Lidar2dConfig;
 pub use motion::{DiffDriveConfig, DroneConfig, RobotState, WaypointMotion};

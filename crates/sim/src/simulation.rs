@@ -7,6 +7,7 @@
 //! Sensor times are whole microseconds (`k · period`), stored as `µs / 1e6`, so that printing
 //! them with 6 decimals (CARMEN, TUM) and parsing them back gives the same numbers.
 
+use crate::attitude::{AttitudeConfig, AttitudeReading};
 use crate::lidar::Lidar2dConfig;
 use crate::motion::{DiffDriveConfig, DroneConfig, RobotState, WaypointMotion};
 use crate::odometry::{OdometryConfig, OdometrySimulator};
@@ -48,6 +49,8 @@ pub struct SimConfig {
     pub lidar: Lidar2dConfig,
     /// The up- and down-looking range finders.
     pub range_finder: RangeFinderConfig,
+    /// Roll and pitch from the flight controller.
+    pub attitude: AttitudeConfig,
 }
 
 impl Default for SimConfig {
@@ -60,6 +63,7 @@ impl Default for SimConfig {
             drone_odometry: OdometryConfig::visual(),
             lidar: Lidar2dConfig::default(),
             range_finder: RangeFinderConfig::default(),
+            attitude: AttitudeConfig::default(),
         }
     }
 }
@@ -80,6 +84,8 @@ pub enum Stream {
     Image = 5,
     /// Choice of far pairs for relations.
     Relations = 6,
+    /// Roll and pitch noise.
+    Attitude = 7,
 }
 
 /// The lidar part of a run: what 2D lidar SLAM needs.
@@ -89,6 +95,8 @@ pub struct LidarRun {
     pub scans: Vec<LaserScan>,
     /// Range finder readings.
     pub ranges: Vec<RangeReading>,
+    /// Roll and pitch at every scan time.
+    pub attitudes: Vec<AttitudeReading>,
     /// True `world_from_base` at every scan time.
     pub ground_truth: Trajectory,
 }
@@ -129,6 +137,7 @@ impl Simulation {
     ) -> Result<Self, SimError> {
         config.lidar.validate()?;
         config.range_finder.validate()?;
+        config.attitude.validate()?;
         Ok(Self {
             scene: Scene::new(&world),
             world,
@@ -204,6 +213,13 @@ impl Simulation {
             .collect()
     }
 
+    /// Attitude reading number `index` at `timestamp`.
+    pub fn attitude_reading(&self, index: usize, timestamp: f64) -> AttitudeReading {
+        let pose = self.state_at(timestamp).world_from_base;
+        let mut rng = self.rng(Stream::Attitude, index as u64);
+        self.config.attitude.read(&pose, timestamp, &mut rng)
+    }
+
     /// Range finder readings at `times`.
     pub fn range_readings(&self, times: &[f64]) -> Vec<RangeReading> {
         times
@@ -213,13 +229,18 @@ impl Simulation {
             .collect()
     }
 
-    /// The whole run's scans (with odometry), range readings and ground truth, each sensor at
-    /// its own rate.
+    /// The whole run's scans (with odometry), range readings, attitudes (at the scan times) and
+    /// ground truth, each sensor at its own rate.
     pub fn lidar_run(&self) -> LidarRun {
         let times = self.sample_times(self.config.lidar.rate_hz);
         LidarRun {
             scans: self.lidar_scans(&times),
             ranges: self.range_readings(&self.sample_times(self.config.range_finder.rate_hz)),
+            attitudes: times
+                .iter()
+                .enumerate()
+                .map(|(i, &t)| self.attitude_reading(i, t))
+                .collect(),
             ground_truth: self.ground_truth(&times),
         }
     }
