@@ -241,7 +241,7 @@ impl LayeredIcpSlam {
         if scan.odometry.is_some() {
             self.last_odometry = scan.odometry;
         }
-        self.world_from_base * motion
+        renormalised(self.world_from_base * motion)
     }
 
     /// Runs the scan through the map of `layer` from the global `predicted` pose.
@@ -270,7 +270,7 @@ impl LayeredIcpSlam {
             };
             let fresh = Layer {
                 slam,
-                world_from_layer: start,
+                world_from_layer: renormalised(start),
                 last: None,
             };
             self.layers.insert(layer, fresh);
@@ -350,18 +350,27 @@ impl LayeredIcpSlam {
 /// (its last pose moved by the odometry increment) is `predicted`; returns the world pose.
 fn feed(layer: &mut Layer, scan: &LaserScan, predicted: &Pose2) -> (Pose2, ScanStatus) {
     let in_layer = layer.world_from_layer.inverse() * predicted;
-    let odometry = match layer.last {
+    let odometry = renormalised(match layer.last {
         Some((last_odometry, last_pose)) => last_odometry * last_pose.inverse() * in_layer,
         None => in_layer,
-    };
+    });
     let mut scan = scan.clone();
     scan.odometry = Some(odometry);
     let estimate = layer.slam.process(&scan);
     layer.last = Some((odometry, estimate.world_from_base));
     (
-        layer.world_from_layer * estimate.world_from_base,
+        renormalised(layer.world_from_layer * estimate.world_from_base),
         estimate.status,
     )
+}
+
+/// `pose` with its rotation scaled back to unit length. The inverse of a rotation is taken to be
+/// its conjugate, so a rotation slightly off unit length stays off in every product; the chain
+/// odometry → layer prediction → estimate → next odometry multiplies those errors, which grew
+/// from 1e-16 to a collapsed (zero) rotation within a hundred scans before this was applied.
+fn renormalised(mut pose: Pose2) -> Pose2 {
+    pose.rotation.renormalize();
+    pose
 }
 
 #[cfg(test)]
