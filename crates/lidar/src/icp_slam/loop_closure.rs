@@ -69,9 +69,9 @@ impl Default for LoopClosureConfig {
             enabled: true,
             every_keyframes: 2,
             search_radius_m: 3.0,
-            min_separation_keyframes: 30,
-            max_candidates: 1,
-            submap_half_keyframes: 5,
+            min_separation_keyframes: 100,
+            max_candidates: 3,
+            submap_half_keyframes: 15,
             search_voxel_m: 0.1,
             max_range_m: 15.0,
             correlative: CorrelativeConfig {
@@ -227,14 +227,8 @@ pub fn find_closures(
             };
             let coarse =
                 correlative_match(&coarse_source, submap.points(), &guess, &config.correlative)
-                    .ok();
-            if window > 2.0 {
-                eprintln!(
-                    "DBG to {to} from {from} win {window:.2} score {:?}",
-                    coarse.map(|c| c.score)
-                );
-            }
-            let coarse = coarse.filter(|c| c.score >= config.min_score)?;
+                    .ok()
+                    .filter(|c| c.score >= config.min_score)?;
             let fine = align(
                 &source,
                 submap.index(),
