@@ -1,24 +1,40 @@
 //! `slamkit demo`: the whole system on a simulated drone, with no download.
 //!
-//! Simulates a flight through a built-in world (seeded, so every run gives the same data), runs
-//! ICP-SLAM on the lidar scans with the drone's drifting odometry as the initial guess, and
-//! compares each estimated position with the simulator's ground truth. Writes
-//! `trajectory.tum`, `groundtruth.tum`, `map.pgm`/`map.yaml`/`map.png` and `report.json`
-//! (`metrics.icp.position_error_mean_m`, `metrics.icp.position_error_max_m`).
+//! Simulates a flight through a built-in world (seeded, so every run gives the same data) and
+//! runs layered ICP-SLAM on it ([`slamkit_lidar::layers`]: one 2D map per 5 cm height layer,
+//! the layer tracked by the up and down range finders, scans ignored while the drone tilts),
+//! with the drone's drifting odometry as the initial guess, and particle-filter SLAM
+//! ([`slamkit_lidar::rbpf`]) on the same scans in a single 2D map, its height taken from the
+//! layered tracker. Each estimated 3D position is compared with the simulator's ground truth at
+//! the same time.
 //!
-//! This is a single-layer 2D run: the height layers of the seed's drone SLAM and the particle
-//! filter join it as they land (issue #5).
+//! Writes in `--out`: `trajectory.tum`, `groundtruth.tum`, `map.pgm`/`map.yaml`/`map.png` (every
+//! layer's scans in one grid), `maps/layer_NNN.{pgm,yaml,png}` (one grid per height layer),
+//! `cloud.ply` (the merged layer maps), `trajectory_pf.tum` and `map_pf.{pgm,yaml,png}` (the
+//! particle filter's best trajectory and map), `errors_icp.png` and `errors_pf.png` (top view
+//! and error over time), `report.json` (`metrics.{icp,pf}.position_error_mean_m`,
+//! `metrics.{icp,pf}.position_error_max_m`) and
+//! `report.html` (all of it on one page, images embedded).
+
+mod html;
 
 use crate::output::{peak_rss_bytes, prepare_out_dir, progress_bar, timings_json, write_report};
 use anyhow::Context;
+use nalgebra::{Point3, Translation3, UnitQuaternion};
 use serde_json::json;
 use slamkit_core::pose::pose3_to_pose2;
-use slamkit_core::{Pose2, Trajectory};
+use slamkit_core::{Pose2, Pose3, Trajectory};
+use slamkit_eval::plot::{plot_errors, ErrorSeries, TopView};
 use slamkit_io::write_tum;
-use slamkit_lidar::icp_slam::{run_icp_slam, IcpSlamConfig};
+use slamkit_lidar::layers::{
+    LayerInput, LayerScanStatus, LayeredEstimate, LayeredIcpSlam, LayeredSlamConfig,
+};
+use slamkit_lidar::rbpf::{run_rbpf, RbpfConfig, RbpfOutput};
 use slamkit_map::{save_map_yaml, save_png, OccupancyGrid, OccupancyGridConfig};
-use slamkit_sim::{SimConfig, Simulation, World as SimWorld};
-use std::path::PathBuf;
+use slamkit_sim::{LidarRun, RangeReading, SimConfig, Simulation, World as SimWorld};
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// Built-in worlds.
@@ -56,6 +72,36 @@ pub struct DemoArgs {
     pub out: PathBuf,
 }
 
+/// One SLAM method's result, ready to report.
+struct MethodResult {
+    /// Short name used in file names and report keys.
+    key: &'static str,
+    /// Name shown to people.
+    title: &'static str,
+    /// Estimated poses in the simulator's frame.
+    estimate: Trajectory,
+    /// 3D position error at each pose \[m\].
+    errors_m: Vec<f64>,
+}
+
+impl MethodResult {
+    fn mean_m(&self) -> f64 {
+        self.errors_m.iter().sum::<f64>() / self.errors_m.len().max(1) as f64
+    }
+
+    fn max_m(&self) -> f64 {
+        self.errors_m.iter().copied().fold(0.0, f64::max)
+    }
+}
+
+/// A height layer's grid map written to disk.
+struct LayerFile {
+    layer: i64,
+    z_range_m: [f64; 2],
+    scans: usize,
+    png: PathBuf,
+}
+
 /// Runs `slamkit demo`.
 pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     let started = Instant::now();
@@ -71,76 +117,332 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     );
     let run = sim.lidar_run();
 
-    let config = IcpSlamConfig::default();
-    let bar = progress_bar(run.scans.len() as u64, "icp-slam");
-    let result = run_icp_slam(&run.scans, &config, |_| bar.inc(1))?;
-    bar.finish_and_clear();
+    let config = LayeredSlamConfig::default();
+    let slam_started = Instant::now();
+    let (slam, estimates) = run_layered(&run, &config)?;
+    let slam_s = slam_started.elapsed().as_secs_f64();
+    let icp_poses: Vec<Pose3> = estimates.iter().map(|e| e.world_from_base).collect();
+    let icp = evaluate("icp", "layered ICP-SLAM", &run, &icp_poses)?;
+    let pf_config = RbpfConfig {
+        seed: args.seed,
+        ..RbpfConfig::default()
+    };
+    let pf_started = Instant::now();
+    let pf_run = run_pf(&run, &pf_config)?;
+    let pf_s = pf_started.elapsed().as_secs_f64();
+    let pf_poses = with_height(&pf_run.poses, &estimates);
+    let pf = evaluate("pf", "particle-filter SLAM", &run, &pf_poses)?;
 
-    // SLAM's world frame is its first pose; express it in the simulator's frame to compare.
-    let sim_from_slam = run
-        .ground_truth
-        .poses
-        .first()
-        .map(|p| p.pose)
-        .context("the simulation produced no scan")?;
-    let mut estimate = Trajectory::new();
-    for p in &result.trajectory.poses {
-        estimate.push(p.timestamp, sim_from_slam * p.pose);
-    }
-    let errors = position_errors_m(&estimate, &run.ground_truth);
-    let mean = errors.iter().sum::<f64>() / errors.len().max(1) as f64;
-    let max = errors.iter().copied().fold(0.0, f64::max);
-
-    write_tum(&out.join("trajectory.tum"), &estimate)?;
+    write_tum(&out.join("trajectory.tum"), &icp.estimate)?;
     write_tum(&out.join("groundtruth.tum"), &run.ground_truth)?;
-    let mut grid = OccupancyGrid::new(OccupancyGridConfig::default())?;
-    let sim_from_slam_2d = pose3_to_pose2(&sim_from_slam);
-    for (scan, est) in run.scans.iter().zip(&result.estimates) {
-        let world_from_laser: Pose2 = sim_from_slam_2d * est.world_from_base * scan.base_from_laser;
-        grid.insert_scan(scan, &world_from_laser)?;
+    let sim_from_slam = sim_from_slam(&run)?;
+    let layer_files = write_maps(&out, &run, &estimates, &sim_from_slam)?;
+    let cloud: Vec<Point3<f64>> = slam
+        .merged_cloud()
+        .iter()
+        .map(|p| sim_from_slam * p)
+        .collect();
+    write_ply(&out.join("cloud.ply"), &cloud)?;
+    write_tum(&out.join("trajectory_pf.tum"), &pf.estimate)?;
+    if let Some(grid) = &pf_run.map {
+        save_map_yaml(grid, &out.join("map_pf.yaml"))?;
+        save_png(grid, &out.join("map_pf.png"))?;
     }
-    save_map_yaml(&grid, &out.join("map.yaml"))?;
-    save_png(&grid, &out.join("map.png"))?;
+    let mut plots = Vec::new();
+    for m in [&icp, &pf] {
+        let plot = out.join(format!("errors_{}.png", m.key));
+        plot_method(&plot, m, &run.ground_truth)?;
+        plots.push((m.title, m.mean_m(), m.max_m(), plot));
+    }
 
+    let stats = slam.stats();
     let report = json!({
         "input": { "world": args.world.name(), "seed": args.seed, "duration_s": sim.duration_s() },
-        "config": { "sim": sim.config, "icp": config },
+        "config": { "sim": sim.config, "icp": config, "pf": pf_config },
         "frames": {
             "read": run.scans.len(),
-            "processed": result.stats.scans_processed,
-            "skipped": result.stats.scans_skipped,
-            "failed": result.stats.matches_failed,
+            "processed": count(&estimates, |s| matches!(s, LayerScanStatus::Slam(_))),
+            "skipped": stats.scans_tilted + stats.scans_without_height,
+            "failed": count(&estimates, |s| matches!(s, LayerScanStatus::Slam(
+                slamkit_lidar::icp_slam::ScanStatus::MatchFailed))),
+            "tilted": stats.scans_tilted,
+        },
+        "layers": {
+            "count": layer_files.len(),
+            "switches": stats.layer_switches,
+            "returns": stats.layer_returns,
+            "obstacle_edges": stats.obstacle_edges,
         },
         "wall_seconds": started.elapsed().as_secs_f64(),
-        "timings_ms": { "icp": timings_json(&result.timings) },
+        "pf": pf_run.stats,
+        "timings_ms": {
+            "icp": timings_json(slam.timings()),
+            "icp_total_s": slam_s,
+            "pf": timings_json(&pf_run.timings),
+            "pf_total_s": pf_s,
+        },
         "peak_rss_bytes": peak_rss_bytes(),
-        "metrics": { "icp": {
-            "position_error_mean_m": mean,
-            "position_error_max_m": max,
-            "path_length_m": run.ground_truth.path_length_m(),
-        } },
+        "metrics": { "icp": metrics_json(&icp, &run), "pf": metrics_json(&pf, &run) },
     });
     write_report(&out, &report)?;
+    let page = html::Page {
+        world: args.world.name(),
+        seed: args.seed,
+        duration_s: sim.duration_s(),
+        path_length_m: run.ground_truth.path_length_m(),
+        methods: plots,
+        maps: [
+            ("Map of all layers (layered ICP-SLAM)", out.join("map.png")),
+            ("Particle-filter SLAM map", out.join("map_pf.png")),
+        ]
+        .into_iter()
+        .filter(|(_, png)| png.exists())
+        .collect(),
+        layers: layer_files
+            .iter()
+            .map(|l| html::LayerImage {
+                layer: l.layer,
+                z_range_m: l.z_range_m,
+                scans: l.scans,
+                png: l.png.clone(),
+            })
+            .collect(),
+    };
+    html::write(&out.join("report.html"), &page)?;
     println!(
-        "method    mean error  max error   (path {:.1} m)",
-        run.ground_truth.path_length_m()
+        "method                 mean error  max error   (path {:.1} m, {} layers)",
+        run.ground_truth.path_length_m(),
+        layer_files.len()
     );
-    println!("icp-slam  {mean:>8.3} m  {max:>7.3} m");
+    for m in [&icp, &pf] {
+        println!(
+            "{:<22} {:>8.3} m  {:>7.3} m",
+            m.title,
+            m.mean_m(),
+            m.max_m()
+        );
+    }
     println!("outputs in {}", out.display());
     Ok(())
 }
 
-/// Horizontal position error of each estimated pose against the ground truth pose at the same
-/// index (both sampled at the scan times) (m).
-fn position_errors_m(estimate: &Trajectory, truth: &Trajectory) -> Vec<f64> {
-    estimate
+/// Runs layered ICP-SLAM over the run: each scan with the range reading and attitude of its
+/// time.
+fn run_layered(
+    run: &LidarRun,
+    config: &LayeredSlamConfig,
+) -> anyhow::Result<(LayeredIcpSlam, Vec<LayeredEstimate>)> {
+    let mut slam = LayeredIcpSlam::new(config.clone())?;
+    let bar = progress_bar(run.scans.len() as u64, "icp-slam");
+    let mut estimates = Vec::with_capacity(run.scans.len());
+    for (scan, attitude) in run.scans.iter().zip(&run.attitudes) {
+        let range = latest_reading(&run.ranges, scan.timestamp);
+        let input = LayerInput {
+            scan,
+            up_m: range.and_then(|r| r.up_m),
+            down_m: range.and_then(|r| r.down_m),
+            roll_rad: attitude.roll_rad,
+            pitch_rad: attitude.pitch_rad,
+        };
+        estimates.push(slam.process(&input));
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    Ok((slam, estimates))
+}
+
+/// Runs particle-filter SLAM on the same scans, with a progress bar.
+fn run_pf(run: &LidarRun, config: &RbpfConfig) -> anyhow::Result<RbpfOutput> {
+    let bar = progress_bar(run.scans.len() as u64, "pf-slam");
+    let output = run_rbpf(&run.scans, config, |_| bar.inc(1))?;
+    bar.finish_and_clear();
+    Ok(output)
+}
+
+/// 3D poses from the particle filter's planar ones, with the height, roll and pitch of the
+/// layered tracker at the same scan (the particle filter keeps a single 2D map).
+fn with_height(planar: &[Pose2], estimates: &[LayeredEstimate]) -> Vec<Pose3> {
+    planar
+        .iter()
+        .zip(estimates)
+        .map(|(p, e)| {
+            let (roll, pitch, _) = e.world_from_base.rotation.euler_angles();
+            Pose3::from_parts(
+                Translation3::new(
+                    p.translation.x,
+                    p.translation.y,
+                    e.world_from_base.translation.z,
+                ),
+                UnitQuaternion::from_euler_angles(roll, pitch, p.rotation.angle()),
+            )
+        })
+        .collect()
+}
+
+/// The last range reading taken at or before `t`.
+fn latest_reading(readings: &[RangeReading], t: f64) -> Option<&RangeReading> {
+    let after = readings.partition_point(|r| r.timestamp <= t);
+    after.checked_sub(1).and_then(|i| readings.get(i))
+}
+
+fn count(estimates: &[LayeredEstimate], pred: impl Fn(&LayerScanStatus) -> bool) -> usize {
+    estimates.iter().filter(|e| pred(&e.status)).count()
+}
+
+/// The simulator's frame seen from SLAM's: SLAM's x, y and yaw start at the first true pose,
+/// its heights are above the floor, which is the simulator's z = 0.
+fn sim_from_slam(run: &LidarRun) -> anyhow::Result<Pose3> {
+    let first = run
+        .ground_truth
+        .poses
+        .first()
+        .context("the simulation produced no scan")?;
+    let planar = pose3_to_pose2(&first.pose);
+    Ok(Pose3::from_parts(
+        Translation3::new(planar.translation.x, planar.translation.y, 0.0),
+        UnitQuaternion::from_euler_angles(0.0, 0.0, planar.rotation.angle()),
+    ))
+}
+
+/// The estimate in the simulator's frame and its 3D position error at every scan.
+fn evaluate(
+    key: &'static str,
+    title: &'static str,
+    run: &LidarRun,
+    poses: &[Pose3],
+) -> anyhow::Result<MethodResult> {
+    let sim_from_slam = sim_from_slam(run)?;
+    let mut estimate = Trajectory::new();
+    for (pose, truth) in poses.iter().zip(&run.ground_truth.poses) {
+        estimate.push(truth.timestamp, sim_from_slam * pose);
+    }
+    let errors_m = estimate
         .poses
         .iter()
-        .zip(&truth.poses)
+        .zip(&run.ground_truth.poses)
+        .map(|(e, t)| (e.pose.translation.vector - t.pose.translation.vector).norm())
+        .collect();
+    Ok(MethodResult {
+        key,
+        title,
+        estimate,
+        errors_m,
+    })
+}
+
+fn metrics_json(m: &MethodResult, run: &LidarRun) -> serde_json::Value {
+    let horizontal: Vec<f64> = m
+        .estimate
+        .poses
+        .iter()
+        .zip(&run.ground_truth.poses)
         .map(|(e, t)| {
             (e.pose.translation.vector - t.pose.translation.vector)
                 .xy()
                 .norm()
         })
-        .collect()
+        .collect();
+    let vertical: Vec<f64> = m
+        .estimate
+        .poses
+        .iter()
+        .zip(&run.ground_truth.poses)
+        .map(|(e, t)| (e.pose.translation.z - t.pose.translation.z).abs())
+        .collect();
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+    json!({
+        "position_error_mean_m": m.mean_m(),
+        "position_error_max_m": m.max_m(),
+        "horizontal_error_mean_m": mean(&horizontal),
+        "height_error_mean_m": mean(&vertical),
+        "path_length_m": run.ground_truth.path_length_m(),
+    })
+}
+
+/// Writes one grid per height layer (`maps/layer_NNN.*`) and one of every scan (`map.*`), each
+/// scan inserted at its estimated pose.
+fn write_maps(
+    out: &Path,
+    run: &LidarRun,
+    estimates: &[LayeredEstimate],
+    sim_from_slam: &Pose3,
+) -> anyhow::Result<Vec<LayerFile>> {
+    let grid_config = OccupancyGridConfig::default();
+    let mut all = OccupancyGrid::new(grid_config.clone())?;
+    let mut layers: BTreeMap<i64, (OccupancyGrid, usize)> = BTreeMap::new();
+    for (scan, est) in run.scans.iter().zip(estimates) {
+        let (LayerScanStatus::Slam(_), Some(layer)) = (est.status, est.layer) else {
+            continue;
+        };
+        let world_from_base: Pose2 = pose3_to_pose2(&(sim_from_slam * est.world_from_base));
+        let world_from_laser = world_from_base * scan.base_from_laser;
+        all.insert_scan(scan, &world_from_laser)?;
+        let entry = match layers.entry(layer) {
+            std::collections::btree_map::Entry::Occupied(e) => e.into_mut(),
+            std::collections::btree_map::Entry::Vacant(v) => {
+                v.insert((OccupancyGrid::new(grid_config.clone())?, 0))
+            }
+        };
+        entry.0.insert_scan(scan, &world_from_laser)?;
+        entry.1 += 1;
+    }
+    save_map_yaml(&all, &out.join("map.yaml"))?;
+    save_png(&all, &out.join("map.png"))?;
+    let dir = out.join("maps");
+    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    let thickness = LayeredSlamConfig::default().height.layer_height_m;
+    let mut files = Vec::new();
+    for (layer, (grid, scans)) in &layers {
+        let stem = dir.join(format!("layer_{layer:03}"));
+        save_map_yaml(grid, &stem.with_extension("yaml"))?;
+        let png = stem.with_extension("png");
+        save_png(grid, &png)?;
+        let bottom = *layer as f64 * thickness;
+        files.push(LayerFile {
+            layer: *layer,
+            z_range_m: [bottom, bottom + thickness],
+            scans: *scans,
+            png,
+        });
+    }
+    Ok(files)
+}
+
+/// Writes `points` as an ASCII PLY point cloud.
+fn write_ply(path: &Path, points: &[Point3<f64>]) -> anyhow::Result<()> {
+    let mut text = format!(
+        "ply\nformat ascii 1.0\ncomment slamkit demo: merged height-layer maps\n\
+         element vertex {}\nproperty float x\nproperty float y\nproperty float z\nend_header\n",
+        points.len()
+    );
+    for p in points {
+        let _ = writeln!(text, "{:.4} {:.4} {:.4}", p.x, p.y, p.z);
+    }
+    std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))
+}
+
+/// Top view of the truth and the estimate, and the error over time.
+fn plot_method(path: &Path, m: &MethodResult, truth: &Trajectory) -> anyhow::Result<()> {
+    let points = |t: &Trajectory| -> Vec<Point3<f64>> {
+        t.poses
+            .iter()
+            .map(|p| Point3::from(p.pose.translation.vector))
+            .collect()
+    };
+    let timestamps: Vec<f64> = m.estimate.poses.iter().map(|p| p.timestamp).collect();
+    let title = format!("{}: position error", m.title);
+    plot_errors(
+        path,
+        &TopView {
+            reference: &points(truth),
+            estimate: &points(&m.estimate),
+        },
+        &ErrorSeries {
+            title: &title,
+            label: "position error [m]",
+            timestamps: &timestamps,
+            errors: &m.errors_m,
+        },
+    )?;
+    Ok(())
 }
