@@ -42,7 +42,7 @@ pub struct StereoConfig {
 impl Default for StereoConfig {
     fn default() -> Self {
         Self {
-            half_window_px: 4,
+            half_window_px: 9,
             min_disparity_px: 1,
             max_disparity_px: 128,
             min_confidence: 0.5,
@@ -184,9 +184,10 @@ impl<'a> StereoPair<'a> {
             }
             _ => 0.0,
         };
-        let d = (config.min_disparity_px + best) as f32 + offset;
+        // the window is centred on the rounded pixel; the disparity of a smooth surface is the
+        // same a fraction of a pixel away, so it is not shifted by the rounding
         Some(StereoMatch {
-            disparity_px: d + (x - xi as f32),
+            disparity_px: (config.min_disparity_px + best) as f32 + offset,
             confidence,
         })
     }
@@ -322,7 +323,10 @@ mod tests {
         for truth in [7.0f32, 12.25, 20.5] {
             let (l, r) = pair(truth);
             let pairing = StereoPair::new(&l, &r).unwrap();
-            let pts: Vec<(f32, f32)> = (0..10).map(|i| (60.0 + 8.0 * i as f32, 30.0)).collect();
+            // sub-pixel positions: the disparity must not follow the rounding of x
+            let pts: Vec<(f32, f32)> = (0..10)
+                .map(|i| (60.4 + 8.0 * i as f32 - 0.1 * i as f32, 30.0))
+                .collect();
             let got = pairing
                 .match_points(&pts, &StereoConfig::default())
                 .unwrap();
