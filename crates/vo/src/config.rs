@@ -91,7 +91,7 @@ impl Default for VoConfig {
             depth: DepthConfig::default(),
             register_depth: None,
             stereo: StereoConfig::default(),
-            max_stereo_depth_m: 40.0,
+            max_stereo_depth_m: 25.0,
             motion: MotionConfig::default(),
             local_map: LocalMapConfig::default(),
             max_consecutive_failures: 5,
@@ -117,6 +117,14 @@ impl VoConfig {
                 "depth.max_depth_m",
                 self.depth.max_depth_m,
                 "must be > min_depth_m >= 0",
+            ));
+        }
+        let vb = self.depth.virtual_baseline_m;
+        if vb.is_nan() || vb < 0.0 || vb.is_infinite() {
+            return Err(VoError::config(
+                "depth.virtual_baseline_m",
+                vb,
+                "must be finite and >= 0",
             ));
         }
         if self.max_stereo_depth_m.is_nan() || self.max_stereo_depth_m <= 0.0 {

@@ -27,6 +27,10 @@ pub struct DepthConfig {
     pub max_depth_m: f64,
     /// Largest depth spread in a feature's 3×3 neighbourhood, as a fraction of its depth.
     pub max_edge_ratio: f64,
+    /// Virtual stereo baseline of the depth sensor \[m\]: motion refinement treats depth z as
+    /// a disparity `fx · baseline / z` (Kinect v1: 7.5 cm between projector and IR camera);
+    /// 0 uses pixels only.
+    pub virtual_baseline_m: f64,
 }
 
 impl Default for DepthConfig {
@@ -35,6 +39,7 @@ impl Default for DepthConfig {
             min_depth_m: 0.3,
             max_depth_m: 6.0,
             max_edge_ratio: 0.05,
+            virtual_baseline_m: 0.075,
         }
     }
 }

@@ -12,6 +12,7 @@ use slamkit_vision::{shi_tomasi, Clahe, Descriptor, KltPyramid, Orb, StereoPair}
 use crate::config::{FrontendKind, VoConfig};
 use crate::depth::{depth_at, lift, register_depth};
 use crate::error::VoError;
+use crate::motion::StereoCamera;
 use crate::FailReason;
 
 /// Camera-frame points and their RGB colours, index-aligned.
@@ -238,6 +239,19 @@ impl Preprocessor {
 }
 
 impl PreparedFrame {
+    /// The camera for motion estimation: the stereo baseline, or the configured virtual
+    /// baseline of an RGB-D depth sensor.
+    pub fn stereo_camera(&self, config: &VoConfig) -> StereoCamera {
+        let baseline = match self.depth {
+            DepthSource::Right(_) => self.baseline_m,
+            DepthSource::Image(_) => config.depth.virtual_baseline_m,
+        };
+        StereoCamera {
+            k: self.camera,
+            bf: self.camera.fx * baseline,
+        }
+    }
+
     /// The grey image features are tracked in.
     pub fn gray(&self) -> &GrayImage {
         &self.gray

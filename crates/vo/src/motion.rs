@@ -17,7 +17,8 @@
 //! correspondences) is a failed motion: the caller keeps its pose and its reference features.
 
 use nalgebra::{
-    Matrix2x6, Matrix6, Point2, Point3, Translation3, UnitQuaternion, Vector2, Vector6,
+    Matrix3, Matrix3x6, Matrix6, Point2, Point3, Translation3, UnitQuaternion, Vector2, Vector3,
+    Vector6,
 };
 use serde::{Deserialize, Serialize};
 use slamkit_core::camera::Intrinsics;
@@ -190,24 +191,15 @@ fn fit_horn(data: &[Correspondence], indices: &[usize]) -> Result<Pose3, Geometr
     Ok(horn(&src, &dst, false)?.dst_from_src)
 }
 
-/// Reprojection residual `π(T p) − u` \[px\] and the camera-frame point `T p`; `None` behind the
-/// camera.
-fn reprojection_at(
-    k: &Intrinsics,
-    t: &Pose3,
-    c: &Correspondence,
-) -> Option<(Vector2<f64>, Point3<f64>)> {
+/// Reprojection residual `π(T p) − u` \[px\] in the current image; `None` behind the camera.
+fn reprojection(k: &Intrinsics, t: &Pose3, c: &Correspondence) -> Option<Vector2<f64>> {
     let q = t * c.reference;
     if q.z.is_nan() || q.z <= 1e-6 {
         return None;
     }
     let u = Vector2::new(k.fx * q.x / q.z + k.cx, k.fy * q.y / q.z + k.cy);
     let r = u - c.current_px.coords;
-    (r.x.is_finite() && r.y.is_finite()).then_some((r, q))
-}
-
-fn reprojection(k: &Intrinsics, t: &Pose3, c: &Correspondence) -> Option<Vector2<f64>> {
-    reprojection_at(k, t, c).map(|(r, _)| r)
+    (r.x.is_finite() && r.y.is_finite()).then_some(r)
 }
 
 /// Estimates `current_from_reference` from `data`, seen by a camera with intrinsics `k`
@@ -217,9 +209,10 @@ fn reprojection(k: &Intrinsics, t: &Pose3, c: &Correspondence) -> Option<Vector2
 /// A [`MotionFailure`] when the data do not support a motion.
 pub fn estimate_motion(
     data: &[Correspondence],
-    k: &Intrinsics,
+    cam: &StereoCamera,
     config: &MotionConfig,
 ) -> Result<MotionEstimate, MotionFailure> {
+    let k = &cam.k;
     let needed = config.min_inliers.max(5);
     if data.len() < needed {
         return Err(MotionFailure::TooFewCorrespondences { got: data.len() });
@@ -240,7 +233,7 @@ pub fn estimate_motion(
     let mut pose = found.model;
     let mut inliers = found.inliers;
     for _ in 0..2 {
-        pose = refine(data, &inliers, k, pose, config);
+        pose = refine(data, &inliers, cam, pose, config);
         inliers = inliers_of(data, k, &pose, config.inlier_threshold_px);
     }
     let ratio = inliers.len() as f64 / data.len() as f64;
@@ -284,27 +277,104 @@ fn rms(data: &[Correspondence], inliers: &[usize], k: &Intrinsics, pose: &Pose3)
     }
 }
 
-/// Gauss–Newton with Huber weights on the reprojection error of `inliers`; keeps `pose` when a
-/// step fails or does not lower the cost.
+/// The camera the motion is measured with: intrinsics and the stereo term.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StereoCamera {
+    /// Intrinsics of the tracked (left) image, undistorted pixels.
+    pub k: Intrinsics,
+    /// Focal length × baseline \[px·m\]: a point at depth z has disparity `bf / z`. For RGB-D
+    /// a virtual baseline (as ORB-SLAM2 does) turns depth into the same kind of measurement;
+    /// 0 leaves the disparity term out.
+    pub bf: f64,
+}
+
+/// One stereo observation residual (left u, v and right u, \[px\]) and its Jacobian with
+/// respect to a left perturbation δ = (ω, v) of the motion.
+type Residual = (Vector3<f64>, Matrix3x6<f64>);
+
+/// Stereo projection `(u, v, u − bf/z)` of camera-frame `q` and its Jacobian `∂/∂q`; `None`
+/// behind the camera.
+fn project(cam: &StereoCamera, q: &Point3<f64>) -> Option<(Vector3<f64>, Matrix3<f64>)> {
+    if q.z.is_nan() || q.z <= 1e-6 {
+        return None;
+    }
+    let k = &cam.k;
+    let iz = 1.0 / q.z;
+    let u = k.fx * q.x * iz + k.cx;
+    let p = Vector3::new(u, k.fy * q.y * iz + k.cy, u - cam.bf * iz);
+    let du = Vector3::new(k.fx * iz, 0.0, -k.fx * q.x * iz * iz);
+    let j = Matrix3::from_rows(&[
+        du.transpose(),
+        Vector3::new(0.0, k.fy * iz, -k.fy * q.y * iz * iz).transpose(),
+        (du + Vector3::new(0.0, 0.0, cam.bf * iz * iz)).transpose(),
+    ]);
+    p.iter().all(|v| v.is_finite()).then_some((p, j))
+}
+
+/// The two residuals of a correspondence under `t` = current_from_reference: the reference
+/// point moved into the current frame against the current observation (the tracked pixel and
+/// the current disparity), and the current point moved back against the reference
+/// observation. Each point carries its own frame's depth noise; measuring both ways cancels,
+/// to first order, the bias of `z = bf / d` (farther on average than the truth) that a one-way
+/// fit turns into a too-long translation.
+fn symmetric_residuals(
+    cam: &StereoCamera,
+    t: &Pose3,
+    t_inv: &Pose3,
+    c: &Correspondence,
+) -> Option<[Residual; 2]> {
+    let q = t * c.reference;
+    let (pred, jq) = project(cam, &q)?;
+    let (mut obs, _) = project(cam, &c.current)?;
+    let disparity = obs.x - obs.z;
+    obs.x = c.current_px.x;
+    obs.y = c.current_px.y;
+    obs.z = c.current_px.x - disparity;
+    let mut fwd = Matrix3x6::zeros();
+    fwd.fixed_view_mut::<3, 3>(0, 0)
+        .copy_from(&(-jq * q.coords.cross_matrix()));
+    fwd.fixed_view_mut::<3, 3>(0, 3).copy_from(&jq);
+    let q_back = t_inv * c.current;
+    let (pred_back, jb) = project(cam, &q_back)?;
+    let (obs_back, _) = project(cam, &c.reference)?;
+    let rt = t_inv.rotation.to_rotation_matrix().into_inner();
+    let mut bwd = Matrix3x6::zeros();
+    bwd.fixed_view_mut::<3, 3>(0, 0)
+        .copy_from(&(jb * rt * c.current.coords.cross_matrix()));
+    bwd.fixed_view_mut::<3, 3>(0, 3).copy_from(&(-jb * rt));
+    let mut out = [(pred - obs, fwd), (pred_back - obs_back, bwd)];
+    if cam.bf == 0.0 {
+        for (r, j) in &mut out {
+            r.z = 0.0;
+            j.row_mut(2).fill(0.0);
+        }
+    }
+    Some(out)
+}
+
+/// Gauss–Newton with Huber weights on the symmetric stereo reprojection error of `inliers`
+/// ([`symmetric_residuals`]); keeps `pose` when a step fails or does not lower the cost.
 pub fn refine(
     data: &[Correspondence],
     inliers: &[usize],
-    k: &Intrinsics,
+    cam: &StereoCamera,
     mut pose: Pose3,
     config: &MotionConfig,
 ) -> Pose3 {
-    let mut cost = huber_cost(data, inliers, k, &pose, config.huber_px);
+    let mut cost = huber_cost(data, inliers, cam, &pose, config.huber_px);
     for _ in 0..config.refine_iterations {
         let mut h = Matrix6::<f64>::zeros();
         let mut g = Vector6::<f64>::zeros();
+        let pose_inv = pose.inverse();
         for c in inliers.iter().filter_map(|&i| data.get(i)) {
-            let Some((r, q)) = reprojection_at(k, &pose, c) else {
+            let Some(res) = symmetric_residuals(cam, &pose, &pose_inv, c) else {
                 continue;
             };
-            let j = jacobian(k, &q);
-            let w = huber_weight(r.norm(), config.huber_px);
-            h += w * j.transpose() * j;
-            g += w * j.transpose() * r;
+            for (r, j) in &res {
+                let w = huber_weight(r.norm(), config.huber_px);
+                h += w * j.transpose() * j;
+                g += w * j.transpose() * r;
+            }
         }
         let Some(delta) = h.cholesky().map(|ch| ch.solve(&(-g))) else {
             break;
@@ -314,7 +384,7 @@ pub fn refine(
             UnitQuaternion::from_scaled_axis(delta.fixed_rows::<3>(0).into_owned()),
         );
         let candidate = step * pose;
-        let new_cost = huber_cost(data, inliers, k, &candidate, config.huber_px);
+        let new_cost = huber_cost(data, inliers, cam, &candidate, config.huber_px);
         if new_cost.is_nan() || new_cost >= cost {
             break;
         }
@@ -328,28 +398,6 @@ pub fn refine(
     pose
 }
 
-/// `∂π(exp(δ) q)/∂δ` at δ = 0 for δ = (ω, v): `∂π/∂q · [−[q]×  I]`.
-fn jacobian(k: &Intrinsics, q: &Point3<f64>) -> Matrix2x6<f64> {
-    let (x, y, z) = (q.x, q.y, q.z);
-    let iz = 1.0 / z;
-    let iz2 = iz * iz;
-    let (fx, fy) = (k.fx, k.fy);
-    Matrix2x6::new(
-        -fx * x * y * iz2,
-        fx * (1.0 + x * x * iz2),
-        -fx * y * iz,
-        fx * iz,
-        0.0,
-        -fx * x * iz2,
-        -fy * (1.0 + y * y * iz2),
-        fy * x * y * iz2,
-        fy * x * iz,
-        0.0,
-        fy * iz,
-        -fy * y * iz2,
-    )
-}
-
 fn huber_weight(r: f64, delta: f64) -> f64 {
     if r <= delta {
         1.0
@@ -361,14 +409,17 @@ fn huber_weight(r: f64, delta: f64) -> f64 {
 fn huber_cost(
     data: &[Correspondence],
     inliers: &[usize],
-    k: &Intrinsics,
+    cam: &StereoCamera,
     pose: &Pose3,
     delta: f64,
 ) -> f64 {
+    let pose_inv = pose.inverse();
     inliers
         .iter()
-        .filter_map(|&i| data.get(i).and_then(|c| reprojection(k, pose, c)))
-        .map(|r| {
+        .filter_map(|&i| data.get(i))
+        .filter_map(|c| symmetric_residuals(cam, pose, &pose_inv, c))
+        .flatten()
+        .map(|(r, _)| {
             let e = r.norm();
             if e <= delta {
                 0.5 * e * e
@@ -385,6 +436,13 @@ mod tests {
     use nalgebra::Vector3;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
+
+    fn camera() -> StereoCamera {
+        StereoCamera {
+            k: kinect(),
+            bf: 585.0 * 0.075,
+        }
+    }
 
     fn kinect() -> Intrinsics {
         Intrinsics {
@@ -440,7 +498,7 @@ mod tests {
     fn recovers_synthetic_motion_with_outliers() {
         let truth = motion();
         let data = scene(7, &truth, 300, 180);
-        let est = estimate_motion(&data, &kinect(), &MotionConfig::default()).unwrap();
+        let est = estimate_motion(&data, &camera(), &MotionConfig::default()).unwrap();
         let err = truth.inverse() * est.current_from_reference;
         assert!(err.translation.vector.norm() < 2e-3, "{err}");
         assert!(err.rotation.angle() < 1e-3, "{err}");
@@ -459,7 +517,7 @@ mod tests {
         let all: Vec<usize> = (0..200).collect();
         let start = fit_horn(&data, &all).unwrap();
         let config = MotionConfig::default();
-        let refined = refine(&data, &all, &kinect(), start, &config);
+        let refined = refine(&data, &all, &camera(), start, &config);
         let before = rms(&data, &all, &kinect(), &start);
         let after = rms(&data, &all, &kinect(), &refined);
         assert!(after < before, "{after} vs {before}");
@@ -470,12 +528,12 @@ mod tests {
     #[test]
     fn too_few_inliers_fail() {
         let data = scene(9, &motion(), 100, 4);
-        let got = estimate_motion(&data, &kinect(), &MotionConfig::default());
+        let got = estimate_motion(&data, &camera(), &MotionConfig::default());
         assert!(
             matches!(got, Err(MotionFailure::TooFewInliers { .. })),
             "{got:?}"
         );
-        let got = estimate_motion(&data[..4], &kinect(), &MotionConfig::default());
+        let got = estimate_motion(&data[..4], &camera(), &MotionConfig::default());
         assert_eq!(got, Err(MotionFailure::TooFewCorrespondences { got: 4 }));
     }
 

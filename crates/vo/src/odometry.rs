@@ -150,7 +150,8 @@ impl Odometry {
                 current_px: c.pixel,
             })
             .collect();
-        let estimate = match estimate_motion(&data, &frame.camera, &self.config.motion) {
+        let camera = frame.stereo_camera(&self.config);
+        let estimate = match estimate_motion(&data, &camera, &self.config.motion) {
             Ok(e) => e,
             Err(f) => return self.skip(FailReason::Motion(f)),
         };
