@@ -73,7 +73,7 @@ fn bad_frames_fail_without_panic_and_tracking_resumes() {
     let dataset = Dataset::Rgbd(RgbdSequence {
         root: dir.to_path_buf(),
         frames,
-        color_camera: camera.clone(),
+        color_camera: camera,
         depth_camera: camera,
         depth_units_per_metre: 1000.0,
         invalid_depth: Vec::new(),

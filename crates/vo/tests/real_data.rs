@@ -1,7 +1,7 @@
 //! Accuracy on the real sequences of `$SLAMKIT_DATA` (skipped when it is not set). The bounds
 //! sit just above what the published defaults measure (BENCHMARKS.md, "Visual odometry").
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use slamkit_io::{Dataset, DatasetFormat};
 use slamkit_vo::depth::DepthRegistration;
@@ -17,16 +17,20 @@ fn data(test: &str, rel: &str) -> Option<PathBuf> {
     }
 }
 
-fn score(dir: &PathBuf, format: DatasetFormat, config: &VoConfig) -> (VoMetrics, usize) {
-    let dataset = Dataset::open(dir, format).unwrap();
-    let result = run(&dataset, config, RunOptions::default(), || {}).unwrap();
+fn score(
+    dir: &Path,
+    format: DatasetFormat,
+    config: &VoConfig,
+) -> Result<(VoMetrics, usize), Box<dyn std::error::Error>> {
+    let dataset = Dataset::open(dir, format)?;
+    let result = run(&dataset, config, RunOptions::default(), || {})?;
     let failed = result
         .frames
         .iter()
         .filter(|f| matches!(f.status, FrameStatus::Failed(_)))
         .count();
-    let gt = dataset.ground_truth().unwrap();
-    (evaluate(&result.trajectory, gt).unwrap(), failed)
+    let gt = dataset.ground_truth().ok_or("no ground truth")?;
+    Ok((evaluate(&result.trajectory, gt)?, failed))
 }
 
 #[test]
@@ -41,7 +45,7 @@ fn kitti_06_clip_klt_frame_to_frame() {
         mode: TrackingMode::FrameToFrame,
         ..VoConfig::default()
     };
-    let (m, failed) = score(&dir, DatasetFormat::Kitti, &config);
+    let (m, failed) = score(&dir, DatasetFormat::Kitti, &config).unwrap();
     eprintln!(
         "KITTI 06 KLT: ATE {:.4} m, drift {:.2} %, {failed} failed",
         m.ate.rmse, m.end_point_drift_percent
@@ -69,7 +73,7 @@ fn seven_scenes_redkitchen_local_map() {
         ..VoConfig::default()
     };
     assert_eq!(config.mode, TrackingMode::LocalMap);
-    let (m, failed) = score(&dir, DatasetFormat::SevenScenes, &config);
+    let (m, failed) = score(&dir, DatasetFormat::SevenScenes, &config).unwrap();
     eprintln!(
         "7-Scenes local map: ATE {:.4} m, drift {:.2} %, {failed} failed",
         m.ate.rmse, m.end_point_drift_percent
