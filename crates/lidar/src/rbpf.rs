@@ -76,7 +76,7 @@ impl Default for RbpfConfig {
             particles: 30,
             seed: 1,
             grid: OccupancyGridConfig {
-                max_usable_range_m: 20.0,
+                max_usable_range_m: 50.0,
                 ..OccupancyGridConfig::default()
             },
             proposal: ProposalConfig::default(),
@@ -84,7 +84,7 @@ impl Default for RbpfConfig {
             use_odometry: true,
             scan_odometry: ScanOdometryConfig::default(),
             min_range_m: 0.1,
-            max_range_m: 20.0,
+            max_range_m: 50.0,
             beam_stride: 2,
             update_linear_m: 0.3,
             update_angular_rad: 0.2,

@@ -12,7 +12,8 @@
 //! No field is precomputed: particle maps change every step, and only the cells under the beam
 //! ends are ever read.
 //!
-//! The match is a hill climb from the odometry prediction (GMapping's `optimize`): moves of one
+//! The match is a hill climb from a draw of the motion model (GMapping's `drawFromMotion`, then
+//! `optimize`; the draw keeps the particles spread where the scan does not fix the pose): moves of one
 //! step in ±x, ±y, ±θ are taken while they raise the score, then the steps are halved. Around the
 //! best pose `x*`, 3 × 3 × 3 poses `xⱼ` are scored by `p(z | m, xⱼ)·p(xⱼ | x, u)`; their weighted
 //! mean and covariance give the Gaussian the new pose is drawn from, and their sum `η` is the
@@ -66,7 +67,7 @@ pub struct ProposalConfig {
 impl Default for ProposalConfig {
     fn default() -> Self {
         Self {
-            kernel_cells: 1,
+            kernel_cells: 2,
             sigma_m: 0.05,
             z_hit: 0.95,
             z_rand: 0.05,
@@ -302,11 +303,15 @@ pub fn propose(
     rng: &mut impl Rng,
 ) -> Proposal {
     let predicted = previous * increment;
-    let (matched_pose, score) = scorer.climb(scan, &predicted, config);
+    // The climb starts from a draw of the motion model, as GMapping's code does (`drawFromMotion`
+    // before `optimize`): where the scan constrains the pose only weakly (a corridor) particles
+    // keep the motion model's spread instead of all landing on one match.
+    let start = previous * motion.sample(increment, rng);
+    let (matched_pose, score) = scorer.climb(scan, &start, config);
     let needed = (config.min_match_fraction * scan.len() as f64).ceil() as usize;
     let gain = config.likelihood_gain;
     if score.matched < needed.max(1) {
-        let pose = previous * motion.sample(increment, rng);
+        let pose = start;
         return Proposal {
             world_from_base: pose,
             log_weight: scorer.score(scan, &pose).log_likelihood / gain,
