@@ -1,7 +1,21 @@
 //! `slamkit plan`: a path on an occupancy grid map.
+//!
+//! The map is read from a ROS `map_server` YAML (cropped to its known cells), obstacles are
+//! inflated by the robot's footprint, and the chosen planner runs through known-free cells
+//! first and through unknown cells only when that fails. Writes `path.csv` (the waypoints),
+//! `map.png` (the path drawn on the map) and `report.json`.
 
-use crate::output::not_yet;
-use std::path::PathBuf;
+use crate::output::{peak_rss_bytes, prepare_out_dir, write_report};
+use anyhow::Context;
+use nalgebra::Point2;
+use serde_json::json;
+use slamkit_core::image::RgbImage;
+use slamkit_map::{load_map_yaml, TriGrid};
+use slamkit_nav::render::draw_path;
+use slamkit_nav::{plan_on_grid, GridPlanner, PlannedPath};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
 
 /// Grid planners.
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
@@ -10,6 +24,15 @@ pub enum Planner {
     Bfs,
     /// A* with the octile heuristic.
     Astar,
+}
+
+impl From<Planner> for GridPlanner {
+    fn from(p: Planner) -> Self {
+        match p {
+            Planner::Bfs => GridPlanner::Bfs,
+            Planner::Astar => GridPlanner::Astar,
+        }
+    }
 }
 
 /// Arguments of `slamkit plan`.
@@ -27,12 +50,132 @@ pub struct PlanArgs {
     /// Planner.
     #[arg(long, value_enum, default_value = "astar")]
     pub planner: Planner,
+    /// Obstacles grow by this many cells (Chebyshev), the robot's radius: 2 gives a 5 × 5
+    /// footprint.
+    #[arg(long, default_value_t = 2)]
+    pub inflate_cells: usize,
     /// Output folder.
     #[arg(long, default_value = "out/plan")]
     pub out: PathBuf,
 }
 
+/// Parses `X,Y` in metres.
+pub fn parse_xy(text: &str, what: &str) -> anyhow::Result<Point2<f64>> {
+    let parts: Vec<&str> = text.split(',').map(str::trim).collect();
+    let [x, y] = parts.as_slice() else {
+        anyhow::bail!("{what} `{text}`: expected X,Y in metres");
+    };
+    let parse = |s: &str| -> anyhow::Result<f64> {
+        let v: f64 = s
+            .parse()
+            .with_context(|| format!("{what} `{text}`: `{s}` is not a number"))?;
+        anyhow::ensure!(v.is_finite(), "{what} `{text}`: `{s}` is not finite");
+        Ok(v)
+    };
+    Ok(Point2::new(parse(x)?, parse(y)?))
+}
+
 /// Runs `slamkit plan`.
-pub fn run(_args: &PlanArgs) -> anyhow::Result<()> {
-    not_yet("plan", "planning, issue #6")
+pub fn run(args: &PlanArgs) -> anyhow::Result<()> {
+    let started = Instant::now();
+    let start = parse_xy(&args.start, "start")?;
+    let goal = parse_xy(&args.goal, "goal")?;
+    let map =
+        load_map_yaml(&args.map).with_context(|| format!("reading map {}", args.map.display()))?;
+    let grid = TriGrid::from_occupancy_grid(&map);
+    let inflated = grid.inflated(args.inflate_cells);
+    let planner = GridPlanner::from(args.planner);
+    let plan_started = Instant::now();
+    let path = plan_on_grid(&inflated, &start, &goal, planner).with_context(|| {
+        format!(
+            "planning from {},{} to {},{} on {}",
+            start.x,
+            start.y,
+            goal.x,
+            goal.y,
+            args.map.display()
+        )
+    })?;
+    let plan_ms = plan_started.elapsed().as_secs_f64() * 1e3;
+    let out = prepare_out_dir(&args.out)?;
+    write_path_csv(&out.join("path.csv"), &path)?;
+    save_rgb_png(
+        &draw_path(&grid, &inflated, &path.cells),
+        &out.join("map.png"),
+    )?;
+    let report = json!({
+        "input": args.map,
+        "config": {
+            "planner": planner,
+            "start_m": [start.x, start.y],
+            "goal_m": [goal.x, goal.y],
+            "inflate_cells": args.inflate_cells,
+        },
+        "grid": {
+            "width": grid.width(),
+            "height": grid.height(),
+            "resolution_m": grid.resolution_m(),
+            "origin_m": [grid.origin_m().x, grid.origin_m().y],
+        },
+        "metrics": {
+            "length_m": path.length_m,
+            "cost": path.cost,
+            "waypoints": path.waypoints_m.len(),
+            "through_unknown": path.through_unknown,
+            "expanded": path.expanded,
+        },
+        "timings": { "plan_ms": plan_ms },
+        "wall_s": started.elapsed().as_secs_f64(),
+        "peak_rss_bytes": peak_rss_bytes(),
+    });
+    write_report(&out, &report)?;
+    println!(
+        "path: {:.2} m, {} waypoints{}, {:.1} ms; written to {}",
+        path.length_m,
+        path.waypoints_m.len(),
+        if path.through_unknown {
+            " (through unknown cells)"
+        } else {
+            ""
+        },
+        plan_ms,
+        out.display()
+    );
+    Ok(())
+}
+
+/// Writes the waypoints as `x_m,y_m` lines under a header.
+fn write_path_csv(path: &Path, plan: &PlannedPath) -> anyhow::Result<()> {
+    let mut text = String::from("x_m,y_m\n");
+    for p in &plan.waypoints_m {
+        writeln!(text, "{},{}", p.x, p.y)?;
+    }
+    std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))
+}
+
+/// Writes an RGB image as PNG.
+pub fn save_rgb_png(image: &RgbImage, path: &Path) -> anyhow::Result<()> {
+    let bytes: Vec<u8> = image.data().iter().flatten().copied().collect();
+    let (w, h) = (
+        u32::try_from(image.width())?,
+        u32::try_from(image.height())?,
+    );
+    let png = image::RgbImage::from_raw(w, h, bytes).context("image size mismatch")?;
+    png.save_with_format(path, image::ImageFormat::Png)
+        .with_context(|| format!("writing {}", path.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn xy_parses_and_rejects_garbage() {
+        assert_eq!(parse_xy("1.5,-2", "goal").unwrap(), Point2::new(1.5, -2.0));
+        assert_eq!(parse_xy(" 1 , 2 ", "goal").unwrap(), Point2::new(1.0, 2.0));
+        for bad in ["1", "1,2,3", "a,2", "nan,1", ""] {
+            let err = parse_xy(bad, "goal").unwrap_err().to_string();
+            assert!(err.contains("goal"), "{bad}: {err}");
+        }
+    }
 }
