@@ -21,6 +21,7 @@ use crate::icp::{align, IcpConfig, IcpResult};
 use crate::point_map::{Keyframe, KeyframeMap};
 use crate::pose_graph::{Edge, PoseGraph};
 use crate::LidarError;
+pub use broken_scans::{BrokenScan, BrokenScanCounts};
 pub use loop_closure::LoopClosureConfig;
 use nalgebra::{Matrix3, Point2, Vector3};
 use serde::{Deserialize, Serialize};
@@ -190,6 +191,8 @@ pub struct IcpSlamStats {
     pub scans_processed: usize,
     /// Scans skipped for too few usable points.
     pub scans_skipped: usize,
+    /// The skipped scans by reason (NaN, negative, no-return ranges, empty scans, ...).
+    pub skipped_broken: BrokenScanCounts,
     /// Processed scans whose alignment failed.
     pub matches_failed: usize,
     /// Scans aligned only thanks to the correlative search.
@@ -251,6 +254,11 @@ impl IcpSlam {
         self.timings.record("preprocess", elapsed_ms(start));
         if points.len() < self.config.min_scan_points {
             self.stats.scans_skipped += 1;
+            self.stats.skipped_broken.add(broken_scans::classify(
+                scan,
+                self.config.min_range_m,
+                self.config.max_range_m,
+            ));
             return self.commit(guess, ScanStatus::Skipped, None, None);
         }
         self.stats.scans_processed += 1;
@@ -546,6 +554,7 @@ pub fn run_icp_slam(
     })
 }
 
+pub mod broken_scans;
 pub mod loop_closure;
 #[cfg(test)]
 mod tests;

@@ -9,8 +9,10 @@ use anyhow::Context;
 use serde::de::DeserializeOwned;
 use serde_json::json;
 use slamkit_core::{LaserScan, Trajectory};
-use slamkit_lidar::icp_slam::{run_icp_slam, IcpSlamConfig, IcpSlamOutput};
+use slamkit_io::carmen::{CarmenLog, SkipReason};
+use slamkit_lidar::icp_slam::{run_icp_slam, IcpSlamConfig, IcpSlamOutput, IcpSlamStats};
 use slamkit_map::{save_map_yaml, save_png, OccupancyGrid, OccupancyGridConfig};
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -85,6 +87,7 @@ pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
             "failed": result.stats.matches_failed,
             "unreadable_lines": log.skipped.len(),
         },
+        "scans": scan_counts(&log, &result.stats),
         "stats": result.stats,
         "wall_seconds": started.elapsed().as_secs_f64(),
         "timings_ms": timings_json(&result.timings),
@@ -94,6 +97,37 @@ pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
     write_report(&out, &report)?;
     print_summary(&out, &report);
     Ok(())
+}
+
+/// Scans read and processed, and the broken ones skipped: scans the mapper could not use, by
+/// reason, and log lines the reader could not parse (truncated, NaN, garbage), by reason.
+fn scan_counts(log: &CarmenLog, stats: &IcpSlamStats) -> serde_json::Value {
+    let mut unreadable: BTreeMap<&str, usize> = BTreeMap::new();
+    for line in &log.skipped {
+        *unreadable.entry(skip_reason_key(&line.reason)).or_default() += 1;
+    }
+    json!({
+        "read": log.scans.len(),
+        "processed": stats.scans_processed,
+        "skipped_broken": stats.skipped_broken.total(),
+        "skipped_broken_reasons": stats.skipped_broken,
+        "unreadable_lines": log.skipped.len(),
+        "unreadable_line_reasons": unreadable,
+    })
+}
+
+/// A short name for why the reader skipped a line.
+fn skip_reason_key(reason: &SkipReason) -> &'static str {
+    match reason {
+        SkipReason::NotUtf8 => "not_utf8",
+        SkipReason::Garbage { .. } => "garbage",
+        SkipReason::FieldCount { .. } => "wrong_field_count",
+        SkipReason::BadField { .. } => "bad_field",
+        SkipReason::BadBeams(_) => "bad_beams",
+        SkipReason::ReadError(_) => "read_error",
+        SkipReason::OutOfRange(_) => "out_of_range",
+        _ => "other",
+    }
 }
 
 /// The method's configuration: defaults overridden by the TOML file at `path`, when given.

@@ -119,6 +119,18 @@ fn broken_scans_are_skipped_and_counted_but_keep_a_pose() {
     let out = run_icp_slam(&scans, &IcpSlamConfig::default(), |_| {}).unwrap();
     assert_eq!(out.trajectory.len(), scans.len());
     assert_eq!(out.stats.scans_skipped, 5);
+    let reasons = out.stats.skipped_broken;
+    assert_eq!(
+        (
+            reasons.non_finite,
+            reasons.negative,
+            reasons.no_return,
+            reasons.empty
+        ),
+        (2, 1, 1, 1),
+        "{reasons:?}"
+    );
+    assert_eq!(reasons.total(), 5);
     assert_eq!(out.stats.scans_processed, scans.len() - 5);
     assert_eq!(out.estimates[10].status, ScanStatus::Skipped);
     assert_eq!(out.estimates[1].status, ScanStatus::Initialised);
@@ -171,4 +183,29 @@ fn invalid_config_is_rejected() {
         toml::from_str("map_keyframes = 0\n[icp]\nkernel = \"tukey\"\n").unwrap();
     assert_eq!(parsed.map_keyframes, 0);
     assert_eq!(parsed.icp.kernel, crate::icp::RobustKernel::Tukey);
+}
+
+#[test]
+fn a_skipped_scan_is_blamed_on_its_most_common_defect() {
+    let (_, scans) = drive(true);
+    let mut scan = scans[0].clone();
+    let n = scan.ranges_m.len();
+    for (i, r) in scan.ranges_m.iter_mut().enumerate() {
+        *r = if i < n / 3 { f64::NAN } else { 0.05 };
+    }
+    assert_eq!(
+        broken_scans::classify(&scan, 0.1, 30.0),
+        BrokenScan::TooShort
+    );
+    scan.ranges_m.truncate(5);
+    scan.ranges_m.fill(2.0);
+    assert_eq!(
+        broken_scans::classify(&scan, 0.1, 30.0),
+        BrokenScan::TooFewBeams
+    );
+    scan.ranges_m[0] = f64::INFINITY;
+    assert_eq!(
+        broken_scans::classify(&scan, 0.1, 30.0),
+        BrokenScan::NonFinite
+    );
 }

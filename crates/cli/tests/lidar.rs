@@ -1,0 +1,131 @@
+//! `slamkit lidar --method icp` end to end on small CARMEN logs written here: broken scans and
+//! broken lines are skipped and counted by reason in report.json, every readable scan gets a
+//! pose, and a log with no readable scan is a clear error, not a panic.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers fail loudly
+
+use std::fmt::Write as _;
+use std::path::Path;
+use std::process::{Command, Output};
+
+/// Range from `(x, y)` along `angle` to the walls of the room `[-3, 7] × [-3, 3]` m.
+fn room_range(x: f64, y: f64, angle: f64) -> f64 {
+    let (s, c) = angle.sin_cos();
+    let hit = |wall_pos: f64, wall_neg: f64, p: f64, d: f64| {
+        let t = if d > 0.0 {
+            (wall_pos - p) / d
+        } else {
+            (wall_neg - p) / d
+        };
+        if t > 0.0 && t.is_finite() {
+            t
+        } else {
+            f64::INFINITY
+        }
+    };
+    hit(7.0, -3.0, x, c).min(hit(3.0, -3.0, y, s))
+}
+
+/// A FLASER line of a robot at `(x, 0)` facing +x, with `ranges` as its 181 beams.
+fn flaser(ranges: &[String], x: f64, t: f64) -> String {
+    format!(
+        "FLASER {} {} {x} 0 0 {x} 0 0 {t} host {t}\n",
+        ranges.len(),
+        ranges.join(" ")
+    )
+}
+
+/// 60 scans driving 5 cm per scan along the room, with broken scans and lines mixed in.
+fn corrupted_log() -> String {
+    let mut log = String::from("# slamkit test log\n");
+    for k in 0..60 {
+        let x = 0.05 * k as f64;
+        let t = 100.0 + 0.1 * k as f64;
+        let ranges: Vec<String> = (0..181)
+            .map(|i| {
+                let angle = (i as f64 - 90.0).to_radians();
+                match k {
+                    10 => "nan".to_string(),
+                    20 => "-1.0".to_string(),
+                    30 => "81.91".to_string(),
+                    _ => format!("{:.4}", room_range(x, 0.0, angle)),
+                }
+            })
+            .collect();
+        let line = flaser(&ranges, x, t);
+        match k {
+            40 => log.push_str(&line[..line.len() / 2]),
+            _ => log.push_str(&line),
+        }
+        if k == 40 {
+            log.push('\n');
+        }
+    }
+    writeln!(log, "FLASER 0 0 0 0 0 0 0 200 host 200").unwrap();
+    writeln!(log, "%%garbage%% 1 2 3").unwrap();
+    log
+}
+
+fn run_lidar(log: &Path, out: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_slamkit"))
+        .arg("lidar")
+        .arg(log)
+        .args(["--method", "icp", "--out"])
+        .arg(out)
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn broken_scans_are_skipped_and_counted_by_reason() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("corrupted.clf");
+    std::fs::write(&log, corrupted_log()).unwrap();
+    let out = dir.path().join("out");
+    let run = run_lidar(&log, &out);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let scans = &report["scans"];
+    // 60 scan lines: the NaN one and the truncated one are unreadable, 58 are read.
+    assert_eq!(scans["read"], 58, "{scans}");
+    assert_eq!(scans["processed"], 56, "{scans}");
+    assert_eq!(scans["skipped_broken"], 2, "{scans}");
+    let reasons = &scans["skipped_broken_reasons"];
+    assert_eq!(
+        (&reasons["negative"], &reasons["no_return"]),
+        (&1.into(), &1.into())
+    );
+    assert_eq!(scans["unreadable_lines"], 4, "{scans}");
+    let lines = &scans["unreadable_line_reasons"];
+    for reason in ["bad_field", "wrong_field_count", "bad_beams", "garbage"] {
+        assert_eq!(lines[reason], 1, "{reason}: {lines}");
+    }
+    let trajectory = std::fs::read_to_string(out.join("trajectory.tum")).unwrap();
+    let poses: Vec<Vec<f64>> = trajectory
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .map(|l| l.split_whitespace().map(|v| v.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(poses.len(), 58, "a pose for every scan read");
+    let last = poses.last().unwrap();
+    // The last scan was taken 59 × 5 cm from the first.
+    assert!(
+        (last[1] - 2.95).abs() < 0.02 && last[2].abs() < 0.02,
+        "{last:?}"
+    );
+}
+
+#[test]
+fn a_log_without_readable_scans_is_an_error_not_a_panic() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("garbage.clf");
+    std::fs::write(&log, "FLASER 3 nan\n\u{0}\u{1}garbage\nODOM 1 2\n").unwrap();
+    let run = run_lidar(&log, &dir.path().join("out"));
+    assert_eq!(run.status.code(), Some(1), "an error exit, not a panic");
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(stderr.contains("garbage.clf"), "names the file: {stderr}");
+}
