@@ -1,0 +1,84 @@
+//! `slamkit demo` end to end: the simulated drone flight, layered ICP-SLAM and particle-filter
+//! SLAM, checked against the seed work's mean position errors (issue #5: ICP-SLAM / PF-SLAM
+//! small 0.13 / 0.24 m, large 0.29 / 0.33 m, office 0.17 / 0.31 m), and the outputs it
+//! promises. Needs no data set; runs only in release builds (a debug build takes many minutes).
+//! Only `small` is held here: `large` and `office` do not meet their bounds yet (see the
+//! issue's report).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers fail loudly
+
+use std::path::Path;
+use std::process::Command;
+
+/// Runs the demo on `world` into a fresh folder and returns its report, or `None` in debug
+/// builds.
+fn demo(world: &str, out: &Path) -> Option<serde_json::Value> {
+    if cfg!(debug_assertions) {
+        eprintln!("skipped: demo {world}: run with --release");
+        return None;
+    }
+    let run = Command::new(env!("CARGO_BIN_EXE_slamkit"))
+        .args(["demo", "--world", world, "--out"])
+        .arg(out)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        run.status.success(),
+        "slamkit demo --world {world}: {}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    // the table of errors
+    assert!(stdout.contains("layered ICP-SLAM") && stdout.contains("particle-filter SLAM"));
+    let text = std::fs::read_to_string(out.join("report.json")).unwrap();
+    Some(serde_json::from_str(&text).unwrap())
+}
+
+fn metric(report: &serde_json::Value, method: &str, name: &str) -> f64 {
+    report["metrics"][method][name]
+        .as_f64()
+        .unwrap_or_else(|| panic!("metrics.{method}.{name} missing"))
+}
+
+/// Mean errors at most the seed's, maxima finite and not below the means.
+fn check_bounds(report: &serde_json::Value, icp_mean_m: f64, pf_mean_m: f64) {
+    for (method, bound) in [("icp", icp_mean_m), ("pf", pf_mean_m)] {
+        let mean = metric(report, method, "position_error_mean_m");
+        let max = metric(report, method, "position_error_max_m");
+        eprintln!("{method}: mean {mean:.3} m (bound {bound} m), max {max:.3} m");
+        assert!(mean <= bound, "{method} mean error {mean} m > {bound} m");
+        assert!(max.is_finite() && max >= mean);
+    }
+}
+
+#[test]
+fn demo_small_within_the_seed_errors_and_writes_every_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let Some(report) = demo("small", dir.path()) else {
+        return;
+    };
+    check_bounds(&report, 0.13, 0.24);
+    for file in [
+        "report.html",
+        "trajectory.tum",
+        "trajectory_pf.tum",
+        "groundtruth.tum",
+        "map.pgm",
+        "map.yaml",
+        "map.png",
+        "map_pf.png",
+        "cloud.ply",
+        "errors_icp.png",
+        "errors_pf.png",
+    ] {
+        let len = std::fs::metadata(dir.path().join(file))
+            .map(|m| m.len())
+            .unwrap_or(0);
+        assert!(len > 0, "{file} missing or empty");
+    }
+    let layers = report["layers"]["count"].as_u64().unwrap();
+    assert!(layers >= 2, "the flight crosses height layers: {layers}");
+    let html = std::fs::read_to_string(dir.path().join("report.html")).unwrap();
+    // every image is embedded: one plot per method, two whole maps, one map per layer
+    let images = html.matches("src=\"data:image/png;base64,").count();
+    assert_eq!(images as u64, 4 + layers);
+}

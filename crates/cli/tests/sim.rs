@@ -1,0 +1,127 @@
+//! `slamkit sim` end to end: the same seed writes the same files byte for byte, another seed
+//! other noise, and the dataset readers give back exactly what the simulator produced (issue
+//! #5: "the readers round-trip what `sim` writes"). Needs no data set.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers fail loudly
+
+use slamkit_core::pose::{pose2_to_pose3, pose3_to_pose2};
+use slamkit_io::carmen::read_carmen;
+use slamkit_io::read_trajectory;
+use slamkit_io::relations::read_relations;
+use slamkit_sim::{SimConfig, Simulation, World};
+use std::path::Path;
+use std::process::Command;
+
+const WORLD: &str = "small";
+
+fn sim(seed: u64, out: &Path) {
+    let run = Command::new(env!("CARGO_BIN_EXE_slamkit"))
+        .args(["sim", "--world", WORLD, "--sensors", "lidar2d,range"])
+        .args(["--seed", &seed.to_string(), "--out"])
+        .arg(out)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "slamkit sim: {}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+}
+
+/// Every dataset file (not report.json, which holds wall time and memory).
+const FILES: [&str; 5] = [
+    "world.toml",
+    "groundtruth.tum",
+    "lidar.clf",
+    "lidar.relations",
+    "ranges.csv",
+];
+
+#[test]
+fn same_seed_same_bytes_other_seed_other_noise() {
+    let dir = tempfile::tempdir().unwrap();
+    let (a, b, c) = (
+        dir.path().join("a"),
+        dir.path().join("b"),
+        dir.path().join("c"),
+    );
+    sim(7, &a);
+    sim(7, &b);
+    sim(8, &c);
+    for file in FILES {
+        let bytes_a = std::fs::read(a.join(file)).unwrap();
+        assert!(!bytes_a.is_empty(), "{file} is empty");
+        assert!(
+            bytes_a == std::fs::read(b.join(file)).unwrap(),
+            "{file} differs"
+        );
+    }
+    for file in ["lidar.clf", "ranges.csv"] {
+        let (x, y) = (std::fs::read(a.join(file)), std::fs::read(c.join(file)));
+        assert!(
+            x.unwrap() != y.unwrap(),
+            "{file} does not depend on the seed"
+        );
+    }
+}
+
+#[test]
+fn readers_give_back_what_the_simulator_produced() {
+    let dir = tempfile::tempdir().unwrap();
+    let seed = 3;
+    sim(seed, dir.path());
+    let config = SimConfig::default();
+    let simulation = Simulation::new(World::builtin(WORLD).unwrap(), config.clone(), seed).unwrap();
+    let times = simulation.sample_times(config.lidar.rate_hz);
+    let scans = simulation.lidar_scans(&times);
+    let truth = simulation.ground_truth(&times);
+
+    // CARMEN log: timestamps (whole µs) and ranges exact, odometry to the 9 decimals written
+    let log = read_carmen(&dir.path().join("lidar.clf")).unwrap();
+    assert!(log.skipped.is_empty(), "{:?}", log.skipped.first());
+    assert_eq!(log.scans.len(), scans.len());
+    for (read, made) in log.scans.iter().zip(&scans) {
+        assert_eq!(read.timestamp, made.timestamp);
+        assert_eq!(read.ranges_m, made.ranges_m);
+        assert!((read.angle_min_rad - made.angle_min_rad).abs() < 1e-9);
+        assert!((read.angle_increment_rad - made.angle_increment_rad).abs() < 1e-9);
+        let (r, m) = (read.odometry.unwrap(), made.odometry.unwrap());
+        assert!((r.translation.vector - m.translation.vector).norm() < 1e-8);
+        assert!((r.rotation.angle() - m.rotation.angle()).abs() < 1e-8);
+    }
+
+    // ground truth (TUM): same times, poses to the printed precision
+    let (read, _) = read_trajectory(&dir.path().join("groundtruth.tum")).unwrap();
+    assert_eq!(read.poses.len(), truth.poses.len());
+    for (r, t) in read.poses.iter().zip(&truth.poses) {
+        assert_eq!(r.timestamp, t.timestamp);
+        assert!((r.pose.translation.vector - t.pose.translation.vector).norm() < 1e-6);
+        assert!(r.pose.rotation.angle_to(&t.pose.rotation) < 1e-6);
+    }
+
+    // relations: each one the planar true motion between its two scan times
+    let relations = read_relations(&dir.path().join("lidar.relations")).unwrap();
+    assert!(relations.len() >= 10);
+    let pose_at = |t: f64| {
+        let k = times.iter().position(|&x| x == t).unwrap();
+        pose2_to_pose3(&pose3_to_pose2(&truth.poses[k].pose))
+    };
+    for rel in &relations {
+        let expected = pose_at(rel.t1).inverse() * pose_at(rel.t2);
+        let diff = expected.inverse() * rel.t1_from_t2;
+        assert!(diff.translation.vector.norm() < 1e-6 && diff.rotation.angle() < 1e-6);
+    }
+
+    // range finders: one CSV row per reading, empty fields for no return
+    let text = std::fs::read_to_string(dir.path().join("ranges.csv")).unwrap();
+    let readings = simulation.range_readings(&simulation.sample_times(config.range_finder.rate_hz));
+    let rows: Vec<&str> = text.lines().skip(1).collect();
+    assert_eq!(rows.len(), readings.len());
+    let field = |s: &str| (!s.is_empty()).then(|| s.parse::<f64>().unwrap());
+    for (row, reading) in rows.iter().zip(&readings) {
+        let cols: Vec<&str> = row.split(',').collect();
+        assert_eq!(cols.len(), 3, "{row}");
+        assert_eq!(cols[0].parse::<f64>().unwrap(), reading.timestamp);
+        assert_eq!(field(cols[1]), reading.up_m);
+        assert_eq!(field(cols[2]), reading.down_m);
+    }
+}
