@@ -9,8 +9,11 @@
 //!    distance, does not punish the depth noise of far points (Kinect noise grows with z²,
 //!    stereo noise with z²/baseline).
 //! 2. Horn refit on all inliers.
-//! 3. A few Gauss–Newton steps on the inliers' reprojection error with Huber weights
-//!    (the motion-only bundle adjustment of ORB-SLAM, Mur-Artal et al., T-RO 2015), on a left
+//! 3. A few Gauss–Newton steps on the inliers' stereo reprojection error (left u, v and right
+//!    u, as ORB-SLAM2's stereo motion-only bundle adjustment, Mur-Artal & Tardós, T-RO 2017)
+//!    with Huber weights, measured both ways — reference points into the current frame and
+//!    current points into the reference — so the depth noise of neither frame is taken as
+//!    exact (the symmetric transfer error of Hartley & Zisserman 2004, §4.2.2); on a left
 //!    perturbation `T ← exp(δ) T` of SE(3) (Barfoot, *State Estimation for Robotics*, §7.1).
 //!
 //! Too few inliers (fewer than `min_inliers`, or below `min_inlier_ratio` of the
@@ -353,7 +356,8 @@ fn symmetric_residuals(
 }
 
 /// Gauss–Newton with Huber weights on the symmetric stereo reprojection error of `inliers`
-/// ([`symmetric_residuals`]); keeps `pose` when a step fails or does not lower the cost.
+/// (each correspondence measured in both frames); keeps `pose` when a step fails or does not
+/// lower the cost.
 pub fn refine(
     data: &[Correspondence],
     inliers: &[usize],

@@ -9,9 +9,13 @@
 //! Otherwise every frame is processed.
 //!
 //! Per-frame time (`frame` in the timings) is the prepare and track work of one frame, image
-//! decoding excluded; each stage's own time is recorded under its name.
+//! decoding excluded; each stage's own time is recorded under its name. Prepare and track times
+//! are the CPU time of their threads (one core each), so they measure the work of a frame, not
+//! how long other processes on the machine held the core.
 
 use std::time::{Duration, Instant};
+
+use cpu_time::ThreadTime;
 
 use crossbeam_channel::{bounded, Receiver, Sender, TrySendError};
 use serde::Serialize;
@@ -263,7 +267,7 @@ fn prepare_stage(
 ) -> StageTimings {
     let mut timings = StageTimings::default();
     for d in rx {
-        let start = Instant::now();
+        let start = ThreadTime::now();
         let frame = d
             .images
             .map_err(FailReason::Unreadable)
@@ -296,7 +300,7 @@ fn track_stage(
     let mut frames = Vec::new();
     let tracked_from_camera = camera_from_tracked.inverse();
     for p in rx {
-        let start = Instant::now();
+        let start = ThreadTime::now();
         let (status, points) = match p.frame {
             Ok(mut frame) => {
                 let points = std::mem::take(&mut frame.map_points);

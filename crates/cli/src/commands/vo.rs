@@ -6,7 +6,7 @@ use anyhow::Context;
 use serde_json::json;
 use slamkit_io::{Dataset, DatasetFormat as IoFormat};
 use slamkit_vo::depth::DepthRegistration;
-use slamkit_vo::{evaluate, FrontendKind, RunOptions, TrackingMode, VoConfig};
+use slamkit_vo::{evaluate, FrontendKind, RunOptions, VoConfig};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -150,22 +150,24 @@ fn detect_format(dir: &Path) -> anyhow::Result<DatasetFormat> {
 
 /// The preset for the layout and front end, with the `--config` file's fields on top.
 /// 7-Scenes colour is not registered to depth (CAMERA_SOURCES.md §7): its preset warps depth
-/// into a Kinect v1 colour camera. Stereo layouts track frame to frame.
+/// into a Kinect v1 colour camera. Stereo layouts use [`VoConfig::stereo_preset`].
 fn load_config(args: &VoArgs, format: DatasetFormat) -> anyhow::Result<VoConfig> {
-    let mut preset = VoConfig {
-        frontend: match args.frontend {
-            Frontend::Klt => FrontendKind::Klt,
-            Frontend::Orb => FrontendKind::Orb,
-        },
-        ..VoConfig::default()
+    let frontend = match args.frontend {
+        Frontend::Klt => FrontendKind::Klt,
+        Frontend::Orb => FrontendKind::Orb,
     };
-    match format {
-        DatasetFormat::SevenScenes => preset.register_depth = Some(DepthRegistration::default()),
-        // measured on the KITTI 06 clip: at ~1 m between frames, averaging world positions
-        // over the local map's window doubles the ATE of frame-to-frame tracking
-        DatasetFormat::Kitti | DatasetFormat::Euroc => preset.mode = TrackingMode::FrameToFrame,
-        DatasetFormat::Tum | DatasetFormat::Redwood => {}
-    }
+    let preset = match format {
+        DatasetFormat::Kitti | DatasetFormat::Euroc => VoConfig::stereo_preset(frontend),
+        DatasetFormat::SevenScenes => VoConfig {
+            frontend,
+            register_depth: Some(DepthRegistration::default()),
+            ..VoConfig::default()
+        },
+        DatasetFormat::Tum | DatasetFormat::Redwood => VoConfig {
+            frontend,
+            ..VoConfig::default()
+        },
+    };
     let Some(path) = &args.config else {
         return Ok(preset);
     };
