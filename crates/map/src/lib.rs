@@ -7,12 +7,17 @@
 //! * [`grid_io`]: ROS `map_server` maps (PGM + YAML) and PNG images, both ways.
 //! * [`octree`]: 3D occupancy octree with OctoMap's semantics and `.bt` export.
 //! * [`tri_grid`]: dense tri-state grids for planners, and inflation by the robot's radius.
+//! * [`floor`]: the floor plane (RANSAC or three image regions) and the floor-aligned map frame
+//!   (Rodrigues' rotation).
+//! * [`floor_grid`]: 2D grids from 3D points in a height band, by point count or log-odds.
 //!
 //! Frames: the grid lives in the world frame (x, y in metres, cell (0, 0) at the grid origin);
 //! scans are inserted with the laser's pose `world_from_laser`.
 
 pub mod distance_transform;
 pub mod error;
+pub mod floor;
+pub mod floor_grid;
 pub mod grid_io;
 pub mod likelihood_field;
 pub mod occupancy_grid;

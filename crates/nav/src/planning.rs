@@ -53,7 +53,11 @@ pub fn plan_on_grid(
     let start = endpoint(grid, start_m, "start")?;
     let goal = endpoint(grid, goal_m, "goal")?;
     let mut expanded = 0;
+    let any_unknown = grid.cells().contains(&Occupancy::Unknown);
     for allow_unknown in [false, true] {
+        if allow_unknown && !any_unknown {
+            break; // the second search would repeat the first
+        }
         let mask: Vec<bool> = grid
             .cells()
             .iter()
