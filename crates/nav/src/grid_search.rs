@@ -96,10 +96,26 @@ impl Passable<'_> {
     /// Neighbour of `index` by `m`, honouring the no-corner-cutting rule.
     #[inline]
     fn neighbour(&self, index: usize, m: (isize, isize, bool)) -> Option<usize> {
-        let (x, y) = ((index % self.width) as isize, (index / self.width) as isize);
+        let (x, y) = (index % self.width, index / self.width);
+        self.neighbour_xy(x, y, m).map(|(n, _, _)| n)
+    }
+
+    /// Neighbour of cell `(x, y)` by `m` as `(index, x, y)`, honouring the no-corner-cutting
+    /// rule.
+    #[inline]
+    fn neighbour_xy(
+        &self,
+        x: usize,
+        y: usize,
+        m: (isize, isize, bool),
+    ) -> Option<(usize, usize, usize)> {
+        let (x, y) = (x as isize, y as isize);
         let (nx, ny) = (x + m.0, y + m.1);
         let ok = self.ok(nx, ny) && (!m.2 || (self.ok(nx, y) && self.ok(x, ny)));
-        ok.then(|| ny as usize * self.width + nx as usize)
+        ok.then(|| {
+            let (nx, ny) = (nx as usize, ny as usize);
+            (ny * self.width + nx, nx, ny)
+        })
     }
 
     fn valid(&self, cell: (usize, usize)) -> bool {
@@ -179,9 +195,9 @@ pub fn best_first(
     }
     let w = grid.width;
     let (s, g) = (start.1 * w + start.0, goal.1 * w + goal.0);
-    let h = |i: usize| {
+    let h = |x: usize, y: usize| {
         if use_heuristic {
-            model.heuristic((i % w).abs_diff(goal.0), (i / w).abs_diff(goal.1))
+            model.heuristic(x.abs_diff(goal.0), y.abs_diff(goal.1))
         } else {
             0.0
         }
@@ -191,10 +207,10 @@ pub fn best_first(
     let mut closed = vec![false; grid.mask.len()];
     cost[s] = 0.0;
     parent[s] = s as u32;
-    // Min-queue on f, ties to the larger g; f and g are non-negative so their bits order them.
-    let mut queue = BinaryHeap::from([Reverse((h(s).to_bits(), Reverse(0u64), s))]);
+    let mut queue = BinaryHeap::from([Reverse(queue_key(h(start.0, start.1), 0.0, s))]);
     let mut expanded = 0;
-    while let Some(Reverse((_, _, at))) = queue.pop() {
+    while let Some(Reverse(key)) = queue.pop() {
+        let at = (key & u128::from(u32::MAX)) as usize;
         if closed[at] {
             continue;
         }
@@ -208,19 +224,28 @@ pub fn best_first(
                 expanded,
             });
         }
+        let (x, y) = (at % w, at / w);
         for m in MOVES {
-            let Some(n) = grid.neighbour(at, m) else {
+            let Some((n, nx, ny)) = grid.neighbour_xy(x, y, m) else {
                 continue;
             };
             let c = cost[at] + model.step(m.2);
             if c < cost[n] && !closed[n] {
                 cost[n] = c;
                 parent[n] = at as u32;
-                queue.push(Reverse(((c + h(n)).to_bits(), Reverse(c.to_bits()), n)));
+                queue.push(Reverse(queue_key(c + h(nx, ny), c, n)));
             }
         }
     }
     Err(expanded)
+}
+
+/// One integer ordering `f` first, then the larger `g`, then the cell: the bits of
+/// non-negative floats order as the floats do, so a single `u128` comparison does it all.
+#[inline]
+fn queue_key(f: f64, g: f64, index: usize) -> u128 {
+    let g_rank = u32::MAX - (g as f32).to_bits();
+    (u128::from(f.to_bits()) << 64) | (u128::from(g_rank) << 32) | index as u128
 }
 
 #[cfg(test)]
