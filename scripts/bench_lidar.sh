@@ -15,7 +15,7 @@ if ! command -v icp-slam >/dev/null; then
 fi
 python3 -c 'import numpy' 2>/dev/null || pip install -q numpy
 cargo build --release -q -p slamkit --manifest-path "$root/Cargo.toml"
-slamkit=$root/target/release/slamkit
+slamkit=${CARGO_TARGET_DIR:-$root/target}/release/slamkit
 
 # name | log | relations | MRPT converter flags (from tools/mrpt/README.md)
 runs=(
