@@ -9,8 +9,8 @@ use clap::builder::{PossibleValuesParser, TypedValueParser};
 use slamkit_core::Trajectory;
 use slamkit_eval::plot::{plot_errors, ErrorSeries, TopView};
 use slamkit_eval::{
-    ate, relations_error, rpe, Alignment, DeltaUnit, ErrorStats, GroundTruthRelation, Pairing,
-    RelationsStats, RpeConfig, DEFAULT_MAX_DIFF_S,
+    ate, relations_error, rpe, Alignment, AteResult, DeltaUnit, ErrorStats, GroundTruthRelation,
+    Pairing, RelationsStats, RpeConfig, DEFAULT_MAX_DIFF_S,
 };
 use slamkit_io::{read_trajectory, TrajectoryFormat};
 use std::path::{Path, PathBuf};
@@ -119,17 +119,13 @@ fn run_ate(args: &AteArgs) -> anyhow::Result<()> {
     let result = ate(&gt, &est, pairing, args.align).context("computing ATE")?;
     let title = format!("ATE ({} alignment)", args.align);
     if let Some(path) = &args.input.plot {
-        let view = TopView {
-            reference: &result.reference_positions,
-            estimate: &result.aligned_estimate_positions,
-        };
         let series = ErrorSeries {
             title: &title,
             label: "ATE (m)",
             timestamps: &result.timestamps,
             errors: &result.errors_m,
         };
-        plot_errors(path, &view, &series)?;
+        plot_top_view_and_errors(path, &result, &series)?;
     }
     print_stats(&title, &result.stats, args.input.json)
 }
@@ -154,19 +150,29 @@ fn run_rpe(args: &RpeArgs) -> anyhow::Result<()> {
         let aligned = ate(&gt, &est, pairing, Alignment::Se3)
             .or_else(|_| ate(&gt, &est, pairing, Alignment::None))
             .context("aligning the estimate for the plot")?;
-        let view = TopView {
-            reference: &aligned.reference_positions,
-            estimate: &aligned.aligned_estimate_positions,
-        };
         let series = ErrorSeries {
             title: &title,
             label: "RPE (m)",
             timestamps: &result.timestamps,
             errors: &result.errors_m,
         };
-        plot_errors(path, &view, &series)?;
+        plot_top_view_and_errors(path, &aligned, &series)?;
     }
     print_stats(&title, &result.stats, args.input.json)
+}
+
+/// The plot of `--plot`: the aligned trajectories seen from above beside the error series.
+fn plot_top_view_and_errors(
+    path: &Path,
+    aligned: &AteResult,
+    series: &ErrorSeries,
+) -> anyhow::Result<()> {
+    let view = TopView {
+        reference: &aligned.reference_positions,
+        estimate: &aligned.aligned_estimate_positions,
+    };
+    plot_errors(path, &view, series)?;
+    Ok(())
 }
 
 fn run_relations(args: &RelationsArgs) -> anyhow::Result<()> {
