@@ -84,7 +84,12 @@ impl Default for VoConfig {
             clahe: ClaheConfig::default(),
             min_mean_intensity: 12.0,
             shi_tomasi: ShiTomasiConfig::default(),
-            klt: KltConfig::default(),
+            // 11 px rather than OpenCV's 21: on KITTI 06 and 7-Scenes both more accurate and
+            // faster (BENCHMARKS.md)
+            klt: KltConfig {
+                window_px: 11,
+                ..KltConfig::default()
+            },
             max_features: 400,
             orb: OrbConfig::default(),
             matching: MatchConfig::default(),

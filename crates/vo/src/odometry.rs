@@ -19,9 +19,14 @@ use crate::frame::PreparedFrame;
 use crate::local_map::LocalMap;
 use crate::motion::{estimate_motion, Correspondence, MotionFailure};
 
-/// Matched reference features (with the descriptor to refresh them) and their pixels in the
-/// current frame, index-aligned.
-type Matches = (Vec<(RefFeature, Option<Descriptor>)>, Vec<Point2<f64>>);
+/// A reference feature matched in the current frame: the descriptor to refresh it with, its
+/// pixel and (when known) its 3D position in the current frame.
+type Match = (
+    RefFeature,
+    Option<Descriptor>,
+    Point2<f64>,
+    Option<Point3<f64>>,
+);
 
 /// Why a frame could not be tracked.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -200,17 +205,14 @@ impl Odometry {
                 .and_then(|id| self.map.get(id))
                 .map_or(f.point, |l| ref_from_world * l.position())
         };
-        let (matched, pixels): Matches = match self.config.frontend {
+        let matched: Vec<Match> = match self.config.frontend {
             FrontendKind::Klt => self.klt_matches(reference, frame)?,
             FrontendKind::Orb if use_map => self.map_matches(frame, &ref_from_world),
             FrontendKind::Orb => orb_matches(&reference.features, frame, &self.config),
         };
-        let points = frame.lift(&pixels, &self.config)?;
         Ok(matched
             .into_iter()
-            .zip(pixels)
-            .zip(points)
-            .filter_map(|(((f, descriptor), pixel), point)| {
+            .filter_map(|(f, descriptor, pixel, point)| {
                 Some(Candidate {
                     reference_point: map_point(&f),
                     pixel,
@@ -222,13 +224,12 @@ impl Odometry {
             .collect())
     }
 
-    /// KLT: reference features tracked into `frame`.
-    #[allow(clippy::type_complexity)]
+    /// KLT: reference features tracked into `frame`, lifted there.
     fn klt_matches(
         &self,
         reference: &Reference,
         frame: &PreparedFrame,
-    ) -> Result<Matches, FailReason> {
+    ) -> Result<Vec<Match>, FailReason> {
         let (Some(prev), Some(next)) = (&reference.pyramid, &frame.pyramid) else {
             return Err(FailReason::Kernel("KLT front end without pyramids".into()));
         };
@@ -239,23 +240,24 @@ impl Odometry {
             .collect();
         let tracks = track(prev, next, &pts, &self.config.klt)
             .map_err(|e| FailReason::Kernel(e.to_string()))?;
-        Ok(reference
+        let (features, pixels): (Vec<&RefFeature>, Vec<Point2<f64>>) = reference
             .features
             .iter()
             .zip(tracks)
             .filter(|(_, t)| t.ok)
-            .map(|(f, t)| {
-                (
-                    (f.clone(), None),
-                    Point2::new(f64::from(t.x), f64::from(t.y)),
-                )
-            })
-            .unzip())
+            .map(|(f, t)| (f, Point2::new(f64::from(t.x), f64::from(t.y))))
+            .unzip();
+        let points = frame.lift(&pixels, &self.config)?;
+        Ok(features
+            .into_iter()
+            .zip(pixels)
+            .zip(points)
+            .map(|((f, px), p)| (f.clone(), None, px, p))
+            .collect())
     }
 
     /// ORB with the local map: the frame's descriptors matched against the map's.
-    #[allow(clippy::type_complexity)]
-    fn map_matches(&self, frame: &PreparedFrame, ref_from_world: &Pose3) -> Matches {
+    fn map_matches(&self, frame: &PreparedFrame, ref_from_world: &Pose3) -> Vec<Match> {
         let (ids, descriptors) = self.map.descriptors();
         let f = &frame.features;
         match_descriptors(&f.descriptors, &descriptors, &self.config.matching)
@@ -270,11 +272,13 @@ impl Odometry {
                     landmark: Some(id),
                 };
                 Some((
-                    (feature, f.descriptors.get(m.query_idx).copied()),
+                    feature,
+                    f.descriptors.get(m.query_idx).copied(),
                     *f.pixels.get(m.query_idx)?,
+                    *f.points.get(m.query_idx)?,
                 ))
             })
-            .unzip()
+            .collect()
     }
 
     /// Makes `frame` the reference: the inlier candidates `kept` first (keeping their
@@ -343,9 +347,9 @@ impl Odometry {
     }
 }
 
-/// ORB frame to frame: the frame's descriptors matched against the reference's.
-#[allow(clippy::type_complexity)]
-fn orb_matches(reference: &[RefFeature], frame: &PreparedFrame, config: &VoConfig) -> Matches {
+/// ORB frame to frame: the frame's descriptors matched against the reference's; the frame's
+/// points were lifted when it was prepared.
+fn orb_matches(reference: &[RefFeature], frame: &PreparedFrame, config: &VoConfig) -> Vec<Match> {
     let train: Vec<Descriptor> = reference.iter().filter_map(|f| f.descriptor).collect();
     let with_descriptor: Vec<&RefFeature> = reference
         .iter()
@@ -357,9 +361,11 @@ fn orb_matches(reference: &[RefFeature], frame: &PreparedFrame, config: &VoConfi
         .filter_map(|m| {
             let r = (*with_descriptor.get(m.train_idx)?).clone();
             Some((
-                (r, f.descriptors.get(m.query_idx).copied()),
+                r,
+                f.descriptors.get(m.query_idx).copied(),
                 *f.pixels.get(m.query_idx)?,
+                *f.points.get(m.query_idx)?,
             ))
         })
-        .unzip()
+        .collect()
 }
