@@ -1,5 +1,6 @@
 //! A* on a 2000 × 2000 grid with random rectangular obstacles, corner to corner (issue #6: an
-//! answer within 50 ms), and BFS on the same map for comparison.
+//! answer within 50 ms): the planner's A* (jump-point pruning), plain A* and BFS on the same
+//! map for comparison.
 
 // criterion's macros generate undocumented functions.
 #![allow(missing_docs)]
@@ -9,7 +10,8 @@ use nalgebra::Point2;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use slamkit_map::{Occupancy, TriGrid};
-use slamkit_nav::{plan_on_grid, GridPlanner};
+use slamkit_nav::grid_search::{best_first, Passable};
+use slamkit_nav::{plan_on_grid, CostModel, GridPlanner};
 
 /// Random boxes on the benchmark map: about a fifth of it covered.
 const BOXES: usize = 500;
@@ -60,6 +62,18 @@ fn planners(c: &mut Criterion) {
             b.iter(|| plan_on_grid(&grid, &start, &goal, planner).map(|p| p.length_m))
         });
     }
+    let mask: Vec<bool> = grid.cells().iter().map(|c| *c == Occupancy::Free).collect();
+    let passable = Passable {
+        mask: &mask,
+        width: grid.width(),
+        height: grid.height(),
+    };
+    let corners = ((0, 0), (grid.width() - 1, grid.height() - 1));
+    group.bench_function("plain_astar_search_2000x2000", |b| {
+        b.iter(|| {
+            best_first(passable, corners.0, corners.1, CostModel::Octile, true).map(|r| r.cost)
+        })
+    });
     group.finish();
 }
 

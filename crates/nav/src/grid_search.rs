@@ -61,7 +61,7 @@ pub struct SearchResult {
 }
 
 /// The 8 moves: (dx, dy, diagonal).
-const MOVES: [(isize, isize, bool); 8] = [
+pub(crate) const MOVES: [(isize, isize, bool); 8] = [
     (1, 0, false),
     (-1, 0, false),
     (0, 1, false),
@@ -85,7 +85,7 @@ pub struct Passable<'a> {
 
 impl Passable<'_> {
     #[inline]
-    fn ok(&self, x: isize, y: isize) -> bool {
+    pub(crate) fn ok(&self, x: isize, y: isize) -> bool {
         x >= 0
             && y >= 0
             && (x as usize) < self.width
@@ -118,7 +118,7 @@ impl Passable<'_> {
         })
     }
 
-    fn valid(&self, cell: (usize, usize)) -> bool {
+    pub(crate) fn valid(&self, cell: (usize, usize)) -> bool {
         self.mask.len() == self.width * self.height && cell.0 < self.width && cell.1 < self.height
     }
 }
@@ -243,7 +243,7 @@ pub fn best_first(
 /// One integer ordering `f` first, then the larger `g`, then the cell: the bits of
 /// non-negative floats order as the floats do, so a single `u128` comparison does it all.
 #[inline]
-fn queue_key(f: f64, g: f64, index: usize) -> u128 {
+pub(crate) fn queue_key(f: f64, g: f64, index: usize) -> u128 {
     let g_rank = u32::MAX - (g as f32).to_bits();
     (u128::from(f.to_bits()) << 64) | (u128::from(g_rank) << 32) | index as u128
 }

@@ -1,6 +1,7 @@
 //! slamkit-nav: from a map to wheel commands.
 //!
 //! * [`grid_search`]: breadth-first search, Dijkstra and A* on 8-connected 2D grids.
+//! * [`jps`]: jump point search, A* that expands only where straight runs must turn.
 //! * [`planning`]: start and goal in metres, known-free cells first and unknown cells only when
 //!   that fails, clear errors for blocked, unreachable and out-of-map goals.
 //! * [`octree_astar`]: A* through the free voxels of an octree, for flying robots.
@@ -15,6 +16,7 @@
 pub mod error;
 pub mod gating;
 pub mod grid_search;
+pub mod jps;
 pub mod octree_astar;
 pub mod planning;
 pub mod render;
