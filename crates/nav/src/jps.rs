@@ -36,26 +36,45 @@ impl Jumper<'_> {
     }
 
     /// Runs straight from `(x, y)` (already entered) along `(dx, dy)`; the first jump point.
-    fn straight(&self, mut x: isize, mut y: isize, dx: isize, dy: isize) -> Option<(isize, isize)> {
+    ///
+    /// The hot loop of the search: cells are read along the run by index, with the two side
+    /// lines' existence decided once per run.
+    fn straight(&self, x: isize, y: isize, dx: isize, dy: isize) -> Option<(isize, isize)> {
+        let (w, h) = (self.grid.width as isize, self.grid.height as isize);
+        let mask = self.grid.mask;
+        // Position `t` along the run, `perp` across it.
+        let (mut t, perp, d, len, perp_len, stride_t, stride_p) = if dx != 0 {
+            (x, y, dx, w, h, 1, w)
+        } else {
+            (y, x, dy, h, w, w, 1)
+        };
+        if perp < 0 || perp >= perp_len {
+            return None;
+        }
+        let point = |t: isize| if dx != 0 { (t, perp) } else { (perp, t) };
+        let goal_t = {
+            let (gt, gp) = if dx != 0 {
+                self.goal
+            } else {
+                (self.goal.1, self.goal.0)
+            };
+            (gp == perp).then_some(gt)
+        };
+        let (low_side, high_side) = (perp > 0, perp + 1 < perp_len);
+        let base = perp * stride_p;
+        let at = |t: isize, side: isize| {
+            t >= 0 && t < len && mask[(base + t * stride_t + side * stride_p) as usize]
+        };
         loop {
-            if !self.free(x, y) {
+            if !at(t, 0) {
                 return None;
             }
-            if (x, y) == self.goal {
-                return Some((x, y));
+            let forced = (low_side && at(t, -1) && !at(t - d, -1))
+                || (high_side && at(t, 1) && !at(t - d, 1));
+            if forced || goal_t == Some(t) {
+                return Some(point(t));
             }
-            let forced = if dx != 0 {
-                (self.free(x, y - 1) && !self.free(x - dx, y - 1))
-                    || (self.free(x, y + 1) && !self.free(x - dx, y + 1))
-            } else {
-                (self.free(x - 1, y) && !self.free(x - 1, y - dy))
-                    || (self.free(x + 1, y) && !self.free(x + 1, y - dy))
-            };
-            if forced {
-                return Some((x, y));
-            }
-            x += dx;
-            y += dy;
+            t += d;
         }
     }
 
