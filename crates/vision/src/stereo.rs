@@ -121,7 +121,11 @@ impl<'a> StereoPair<'a> {
     ) -> Result<Vec<Option<StereoMatch>>, VisionError> {
         check(config)?;
         let mut scores = Vec::with_capacity(config.max_disparity_px + 1);
-        let mut patch = Vec::with_capacity((2 * config.half_window_px + 1).pow(2));
+        let mut patch = Patch {
+            values: Vec::with_capacity((2 * config.half_window_px + 1).pow(2)),
+            sum: 0,
+            norm: 0.0,
+        };
         Ok(points
             .iter()
             .map(|&p| self.match_point(p, config, &mut patch, &mut scores))
@@ -132,7 +136,7 @@ impl<'a> StereoPair<'a> {
         &self,
         (x, y): (f32, f32),
         config: &StereoConfig,
-        patch: &mut Vec<f32>,
+        patch: &mut Patch,
         scores: &mut Vec<f32>,
     ) -> Option<StereoMatch> {
         let r = config.half_window_px;
@@ -192,8 +196,8 @@ impl<'a> StereoPair<'a> {
         })
     }
 
-    /// ZNCC of the normalised left `patch` with the right window centred at (`xr`, `y`).
-    fn zncc(&self, patch: &[f32], xr: usize, y: usize, r: usize) -> f32 {
+    /// ZNCC of the left `patch` with the right window centred at (`xr`, `y`).
+    fn zncc(&self, patch: &Patch, xr: usize, y: usize, r: usize) -> f32 {
         let side = 2 * r + 1;
         let n = (side * side) as f32;
         let stride = self.right.width() + 1;
@@ -208,8 +212,9 @@ impl<'a> StereoPair<'a> {
         }
         let w = self.right.width();
         let data = self.right.data();
-        let mut dot = 0f32;
-        for (row, prow) in (y0..y1).zip(patch.chunks_exact(side)) {
+        // integer dot product (exact, and vectorised by the compiler)
+        let mut dot = 0i32;
+        for (row, prow) in (y0..y1).zip(patch.values.chunks_exact(side)) {
             let start = row * w + x0;
             let Some(rrow) = data.get(start..start + side) else {
                 return -1.0;
@@ -217,43 +222,57 @@ impl<'a> StereoPair<'a> {
             dot += prow
                 .iter()
                 .zip(rrow)
-                .map(|(a, &b)| a * f32::from(b))
-                .sum::<f32>();
+                .map(|(&a, &b)| i32::from(a) * i32::from(b))
+                .sum::<i32>();
         }
-        // the patch is zero-mean with unit norm, so Σ p·(r − mean) = Σ p·r
-        dot / var.sqrt()
+        // Σ (l − l̄)(r − r̄) = Σ l′r − (Σ l′)(Σ r)/n for l′ = l − any constant
+        let cov = f64::from(dot) - f64::from(patch.sum) * f64::from(sum) / f64::from(n);
+        (cov / f64::from(patch.norm * var.sqrt())) as f32
     }
 }
 
-/// Fills `patch` with the zero-mean, unit-norm left window at (`x`, `y`); `None` when the window
-/// is flatter than `min_texture`.
+/// A left window: grey levels minus their rounded mean, their sum and the window's centred norm
+/// `sqrt(Σ (l − l̄)²)`.
+struct Patch {
+    values: Vec<i16>,
+    sum: i32,
+    norm: f32,
+}
+
+/// Fills `patch` with the left window at (`x`, `y`); `None` when the window is flatter than
+/// `min_texture`.
 fn left_patch(
     img: &GrayImage,
     x: usize,
     y: usize,
     r: usize,
-    patch: &mut Vec<f32>,
+    patch: &mut Patch,
     min_texture: f32,
 ) -> Option<()> {
     let side = 2 * r + 1;
-    patch.clear();
+    let values = &mut patch.values;
+    values.clear();
     for row in y - r..=y + r {
         let start = row * img.width() + x - r;
-        patch.extend(
+        values.extend(
             img.data()
                 .get(start..start + side)?
                 .iter()
-                .map(|&v| f32::from(v)),
+                .map(|&v| i16::from(v)),
         );
     }
-    let n = patch.len() as f32;
-    let mean = patch.iter().sum::<f32>() / n;
-    let var = patch.iter().map(|v| (v - mean) * (v - mean)).sum::<f32>();
-    if (var / n).sqrt() < min_texture {
+    let n = values.len() as f32;
+    let total: i32 = values.iter().map(|&v| i32::from(v)).sum();
+    let offset = (total as f32 / n).round() as i16;
+    values.iter_mut().for_each(|v| *v -= offset);
+    let sum: i32 = values.iter().map(|&v| i32::from(v)).sum();
+    let sum_sq: i64 = values.iter().map(|&v| i64::from(v) * i64::from(v)).sum();
+    let var = sum_sq as f32 - sum as f32 * sum as f32 / n;
+    if var.is_nan() || (var.max(0.0) / n).sqrt() < min_texture || var <= 0.0 {
         return None;
     }
-    let inv = 1.0 / var.sqrt();
-    patch.iter_mut().for_each(|v| *v = (*v - mean) * inv);
+    patch.sum = sum;
+    patch.norm = var.sqrt();
     Some(())
 }
 
