@@ -125,3 +125,20 @@ fn readers_give_back_what_the_simulator_produced() {
         assert_eq!(field(cols[2]), reading.down_m);
     }
 }
+
+#[test]
+fn unknown_and_unsimulated_sensors_are_clear_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    for (sensor, message) in [("sonar", "unknown sensor"), ("rgbd", "not simulated yet")] {
+        let run = Command::new(env!("CARGO_BIN_EXE_slamkit"))
+            .args(["sim", "--world", WORLD, "--sensors", sensor, "--out"])
+            .arg(dir.path())
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert!(
+            !run.status.success() && stderr.contains(message),
+            "{stderr}"
+        );
+    }
+}

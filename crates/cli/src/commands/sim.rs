@@ -29,7 +29,8 @@ pub struct SimArgs {
     /// World: `small`, `large`, `office`, or a TOML world file.
     #[arg(long)]
     pub world: String,
-    /// Sensors to simulate, comma separated: lidar2d, range, rgbd, stereo.
+    /// Sensors to simulate, comma separated: lidar2d, range (the cameras, rgbd and stereo, are
+    /// not simulated yet).
     #[arg(long, value_delimiter = ',', default_value = "lidar2d")]
     pub sensors: Vec<String>,
     /// Seed of every random choice.
@@ -53,9 +54,10 @@ fn parse_sensors(names: &[String]) -> anyhow::Result<Vec<Sensor>> {
         let sensor = match name.trim() {
             "lidar2d" => Sensor::Lidar2d,
             "range" => Sensor::Range,
-            other => {
-                anyhow::bail!("unknown sensor {other:?} (known: lidar2d, range, rgbd, stereo)")
+            "rgbd" | "stereo" => {
+                anyhow::bail!("sensor {name:?} is not simulated yet (available: lidar2d, range)")
             }
+            other => anyhow::bail!("unknown sensor {other:?} (available: lidar2d, range)"),
         };
         if !sensors.contains(&sensor) {
             sensors.push(sensor);
