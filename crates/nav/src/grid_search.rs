@@ -40,7 +40,7 @@ impl CostModel {
     }
 
     /// Consistent lower bound of the cost between cells `dx`, `dy` apart.
-    fn heuristic(self, dx: usize, dy: usize) -> f64 {
+    pub(crate) fn heuristic(self, dx: usize, dy: usize) -> f64 {
         let (hi, lo) = (dx.max(dy) as f64, dx.min(dy) as f64);
         match self {
             CostModel::Unit => hi,

@@ -12,17 +12,13 @@
 //! cell is free and the cell behind it is blocked; a diagonal run stops where one of its two
 //! straight runs finds a jump point, and cannot pass a blocked side cell.
 
-use crate::grid_search::{queue_key, Passable, SearchResult, MOVES};
+use crate::grid_search::{queue_key, CostModel, Passable, SearchResult, MOVES};
 use std::cmp::Reverse;
 use std::collections::{BinaryHeap, HashMap};
 
-const SQRT_2: f64 = std::f64::consts::SQRT_2;
-
 /// Octile distance between two cells.
 fn octile(a: (isize, isize), b: (isize, isize)) -> f64 {
-    let (dx, dy) = ((a.0 - b.0).unsigned_abs(), (a.1 - b.1).unsigned_abs());
-    let (hi, lo) = (dx.max(dy) as f64, dx.min(dy) as f64);
-    hi + (SQRT_2 - 1.0) * lo
+    CostModel::Octile.heuristic((a.0 - b.0).unsigned_abs(), (a.1 - b.1).unsigned_abs())
 }
 
 struct Jumper<'a> {
@@ -282,7 +278,7 @@ fn expand(nodes: &HashMap<usize, Node>, goal: usize, w: usize) -> Vec<(usize, us
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::grid_search::{best_first, CostModel};
+    use crate::grid_search::best_first;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 
@@ -331,7 +327,7 @@ mod tests {
                         mask[p.1 * w + q.0] && mask[q.1 * w + p.0],
                         "seed {seed}: corner cut"
                     );
-                    length += SQRT_2;
+                    length += std::f64::consts::SQRT_2;
                 } else {
                     length += 1.0;
                 }
