@@ -16,10 +16,10 @@
 //!
 //! Loop closure needs no explicit step: when the robot re-enters mapped ground, particles whose
 //! map and trajectory agree with the scan gain weight and the others die out. The output is
-//! the trajectory of the particle with the highest weight at the end, read back through its
-//! ancestry; scans between two updates are placed by odometry, with the correction at the next
-//! update spread over them linearly. Random choices come from a seeded ChaCha8 generator, so a
-//! run is reproducible.
+//! the trajectory of the particle with the highest log weight accumulated over its whole
+//! ancestry (GMapping's `weightSum`), read back through that ancestry; scans between two updates
+//! are placed by odometry, with the correction at the next update spread over them linearly.
+//! Random choices come from a seeded ChaCha8 generator, so a run is reproducible.
 
 pub mod proposal;
 
@@ -194,6 +194,9 @@ struct Particle {
     world_from_base: Pose2,
     grid: OccupancyGrid,
     log_weight: f64,
+    /// Sum of the log weight factors over the particle's whole ancestry, kept through
+    /// resampling (GMapping's `weightSum`): picks the output trajectory.
+    log_likelihood_sum: f64,
     node: Arc<Node>,
 }
 
@@ -317,6 +320,7 @@ impl Rbpf {
             world_from_base: Pose2::identity(),
             grid,
             log_weight: 0.0,
+            log_likelihood_sum: 0.0,
             node,
         };
         self.particles = vec![particle; self.config.particles];
@@ -348,6 +352,7 @@ impl Rbpf {
             self.stats.matches_failed += usize::from(!p.matched);
             particle.world_from_base = p.world_from_base;
             particle.log_weight += p.log_weight;
+            particle.log_likelihood_sum += p.log_weight;
         }
         let proposed = Instant::now();
         for particle in &mut self.particles {
@@ -400,11 +405,13 @@ impl Rbpf {
         self.particles = next;
     }
 
-    /// Index of the particle with the highest weight.
+    /// The particle whose ancestry explains the scans best (highest accumulated log weight, as
+    /// GMapping's `getBestParticleIndex`): the current weights alone are reset by every
+    /// resampling and would leave the choice to chance.
     fn best(&self) -> Option<&Particle> {
         self.particles
             .iter()
-            .max_by(|a, b| a.log_weight.total_cmp(&b.log_weight))
+            .max_by(|a, b| a.log_likelihood_sum.total_cmp(&b.log_likelihood_sum))
     }
 
     /// The best particle's poses at its updates, as `(scan index, world_from_base)` in time

@@ -7,7 +7,9 @@
 //! The bounds sit slightly above what it reaches (measured with
 //! `slamkit lidar LOG --method rbpf --particles 10` and `slamkit eval relations`: Intel 0.0313 m,
 //! ACES 0.0900 m, MIT CSAIL 0.0419 m mean translational error). The targets (Intel
-//! ≤ 0.065, ACES ≤ 0.060, CSAIL ≤ 0.049 m) hold on Intel and CSAIL, not yet on ACES.
+//! ≤ 0.065, ACES ≤ 0.060, CSAIL ≤ 0.049 m) hold on Intel and CSAIL with this seed (1, the
+//! default), not on ACES; other seeds do worse on loop closures (BENCHMARKS.md: the medians over
+//! three seeds meet the CSAIL target only).
 //! Skipped when `SLAMKIT_DATA` is not set; run with `--release`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers fail loudly
 
@@ -118,8 +120,8 @@ fn rbpf_mit_csail() {
 /// Global localisation in the map particle-filter SLAM built from the Intel log: a stretch of
 /// 1500 scans (about 5 minutes) from the middle of the log, started with no prior over the whole
 /// map, must converge within 50 scans and then stay within 0.2 m of the SLAM poses (both live in
-/// the map's frame). Measured: converged at scan 8, within 0.2 m from scan 13 on, median error
-/// 0.040 m, largest from scan 50 on 0.112 m.
+/// the map's frame). Measured: converged at scan 6; from scan 50 on, median error 0.041 m,
+/// largest 0.161 m.
 #[test]
 fn mcl_converges_from_anywhere_in_the_intel_map() {
     let Some(dir) = data_dir("mcl_converges_from_anywhere_in_the_intel_map") else {
