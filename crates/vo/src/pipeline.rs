@@ -20,7 +20,7 @@ use cpu_time::ThreadTime;
 use crossbeam_channel::{bounded, Receiver, Sender, TrySendError};
 use serde::Serialize;
 use slamkit_core::{Pose3, StageTimings, Trajectory};
-use slamkit_io::{Dataset, RgbdSequence, StereoSequence};
+use slamkit_io::Dataset;
 
 use crate::config::VoConfig;
 use crate::error::VoError;
@@ -197,34 +197,25 @@ pub fn rig(dataset: &Dataset) -> Rig {
 }
 
 fn load(dataset: &Dataset, index: usize) -> Option<(f64, Result<SensorImages, String>)> {
-    match dataset {
-        Dataset::Rgbd(s) => load_rgbd(s, index),
-        Dataset::Stereo(s) => load_stereo(s, index),
-    }
-}
-
-fn load_rgbd(s: &RgbdSequence, index: usize) -> Option<(f64, Result<SensorImages, String>)> {
-    let f = s.frames.get(index)?;
-    let images = s
-        .load(f)
-        .map(|i| SensorImages::Rgbd {
-            color: i.color,
-            depth_m: i.depth_m,
-        })
-        .map_err(|e| e.to_string());
-    Some((f.timestamp, images))
-}
-
-fn load_stereo(s: &StereoSequence, index: usize) -> Option<(f64, Result<SensorImages, String>)> {
-    let f = s.frames.get(index)?;
-    let images = s
-        .load(f)
-        .map(|i| SensorImages::Stereo {
-            left: i.left,
-            right: i.right,
-        })
-        .map_err(|e| e.to_string());
-    Some((f.timestamp, images))
+    let (timestamp, images) = match dataset {
+        Dataset::Rgbd(s) => {
+            let f = s.frames.get(index)?;
+            let images = s.load(f).map(|i| SensorImages::Rgbd {
+                color: i.color,
+                depth_m: i.depth_m,
+            });
+            (f.timestamp, images)
+        }
+        Dataset::Stereo(s) => {
+            let f = s.frames.get(index)?;
+            let images = s.load(f).map(|i| SensorImages::Stereo {
+                left: i.left,
+                right: i.right,
+            });
+            (f.timestamp, images)
+        }
+    };
+    Some((timestamp, images.map_err(|e| e.to_string())))
 }
 
 /// Reads every frame; returns (frames handed on, frames dropped).
