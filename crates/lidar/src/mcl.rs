@@ -26,14 +26,16 @@
 //! the weighted mean of the particles within `cluster_radius_m` of the heaviest one.
 
 use crate::motion::{odometry_poses, MotionModelConfig, ScanOdometryConfig};
-use crate::particles::{effective_sample_size, low_variance_resample, normalized_weights};
+use crate::particles::{
+    effective_sample_size, filter_checks, low_variance_resample, moved_enough, normalized_weights,
+};
 use crate::LidarError;
 use nalgebra::{Point2, Vector2};
 use rand::Rng;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
-use slamkit_core::pose::{pose2_to_pose3, wrap_angle};
+use slamkit_core::pose::pose2_to_pose3;
 use slamkit_core::{LaserScan, Pose2, StageTimings, Trajectory};
 use slamkit_map::{LikelihoodField, LikelihoodFieldConfig, Occupancy, OccupancyGrid};
 use std::f64::consts::PI;
@@ -184,21 +186,6 @@ impl MclConfig {
                 self.cluster_radius_m,
                 positive(self.cluster_radius_m),
             ),
-            (
-                "update_linear_m",
-                self.update_linear_m,
-                self.update_linear_m >= 0.0,
-            ),
-            (
-                "update_angular_rad",
-                self.update_angular_rad,
-                self.update_angular_rad >= 0.0,
-            ),
-            (
-                "resample_threshold",
-                self.resample_threshold,
-                fraction(self.resample_threshold),
-            ),
             ("alpha_slow", self.alpha_slow, fraction(self.alpha_slow)),
             ("alpha_fast", self.alpha_fast, fraction(self.alpha_fast)),
             (
@@ -207,7 +194,12 @@ impl MclConfig {
                 fraction(self.relocalise_fraction),
             ),
         ];
-        for (field, value, ok) in checks {
+        let shared = filter_checks(
+            self.update_linear_m,
+            self.update_angular_rad,
+            self.resample_threshold,
+        );
+        for (field, value, ok) in checks.into_iter().chain(shared) {
             if !(ok && value.is_finite()) {
                 return Err(invalid(field, value));
             }
@@ -553,8 +545,11 @@ pub fn run_mcl(
     for (i, (scan, odom)) in scans.iter().zip(&odometry).enumerate() {
         mcl.stats.scans_read += 1;
         let increment = last.map_or(Pose2::identity(), |(o, _)| o.inverse() * odom);
-        let moved = increment.translation.vector.norm() >= config.update_linear_m
-            || wrap_angle(increment.rotation.angle()).abs() >= config.update_angular_rad;
+        let moved = moved_enough(
+            &increment,
+            config.update_linear_m,
+            config.update_angular_rad,
+        );
         if last.is_none() || moved {
             let started = Instant::now();
             mcl.predict(&increment);

@@ -9,6 +9,38 @@
 //! particle of weight `w` is copied `⌊N·w⌋` or `⌈N·w⌉` times.
 
 use rand::Rng;
+use slamkit_core::pose::wrap_angle;
+use slamkit_core::Pose2;
+
+/// True when the odometry `increment` since the last filter update moved at least `linear_m`
+/// or turned at least `angular_rad`: the filters update only then (GMapping `linearUpdate`,
+/// `angularUpdate`).
+pub fn moved_enough(increment: &Pose2, linear_m: f64, angular_rad: f64) -> bool {
+    increment.translation.vector.norm() >= linear_m
+        || wrap_angle(increment.rotation.angle()).abs() >= angular_rad
+}
+
+/// Range checks `(field, value, ok)` of the settings both filters share: the update thresholds
+/// and the resampling threshold.
+pub(crate) fn filter_checks(
+    update_linear_m: f64,
+    update_angular_rad: f64,
+    resample_threshold: f64,
+) -> [(&'static str, f64, bool); 3] {
+    [
+        ("update_linear_m", update_linear_m, update_linear_m >= 0.0),
+        (
+            "update_angular_rad",
+            update_angular_rad,
+            update_angular_rad >= 0.0,
+        ),
+        (
+            "resample_threshold",
+            resample_threshold,
+            (0.0..=1.0).contains(&resample_threshold),
+        ),
+    ]
+}
 
 /// Normalised weights `exp(lᵢ − max l) / Σ` of the log-weights `log_weights`; uniform when they
 /// are all −∞ or NaN.

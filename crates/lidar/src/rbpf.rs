@@ -24,7 +24,9 @@
 pub mod proposal;
 
 use crate::motion::{odometry_poses, MotionModelConfig, ScanOdometryConfig};
-use crate::particles::{effective_sample_size, low_variance_resample, normalized_weights};
+use crate::particles::{
+    effective_sample_size, filter_checks, low_variance_resample, moved_enough, normalized_weights,
+};
 use crate::LidarError;
 use proposal::{propose, GridScorer, PreparedScan, ProposalConfig};
 use rand::SeedableRng;
@@ -130,27 +132,17 @@ impl RbpfConfig {
                 self.max_range_m > self.min_range_m,
             ),
             (
-                "update_linear_m",
-                self.update_linear_m,
-                self.update_linear_m >= 0.0,
-            ),
-            (
-                "update_angular_rad",
-                self.update_angular_rad,
-                self.update_angular_rad >= 0.0,
-            ),
-            (
-                "resample_threshold",
-                self.resample_threshold,
-                (0.0..=1.0).contains(&self.resample_threshold),
-            ),
-            (
                 "beam_stride",
                 self.beam_stride as f64,
                 self.beam_stride >= 1,
             ),
         ];
-        for (field, value, ok) in checks {
+        let shared = filter_checks(
+            self.update_linear_m,
+            self.update_angular_rad,
+            self.resample_threshold,
+        );
+        for (field, value, ok) in checks.into_iter().chain(shared) {
             if !(ok && value.is_finite()) {
                 return Err(invalid(field, value, "out of range"));
             }
@@ -279,8 +271,11 @@ impl Rbpf {
             Some(last) => last.inverse() * odometry,
             None => Pose2::identity(),
         };
-        let moved = increment.translation.vector.norm() >= self.config.update_linear_m
-            || wrap_angle(increment.rotation.angle()).abs() >= self.config.update_angular_rad;
+        let moved = moved_enough(
+            &increment,
+            self.config.update_linear_m,
+            self.config.update_angular_rad,
+        );
         if self.last_update_odometry.is_some() && !moved {
             return RbpfStep::Waiting;
         }
