@@ -14,7 +14,7 @@
 //! 8 × 8 × 8 chunks, visited in Morton order and applied in one depth-first pass, so each inner
 //! node is updated and pruned once per cloud instead of once per voxel; the resulting tree is
 //! the one OctoMap builds ([`bt`] writes it in OctoMap's `.bt` format, and
-//! `scripts/bench_octree.py` checks the agreement with the `pyoctomap` binding).
+//! `scripts/bench_octree_vs_octomap.py` checks the agreement with the `pyoctomap` binding).
 //!
 //! Frames: the octree lives in the world frame of the clouds given to it; keys and the tree
 //! layout are OctoMap's (depth 16, key = floor(x / resolution) + 2^15).
