@@ -37,30 +37,17 @@ import json
 import os
 import statistics
 import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
+from bench_common import ROOT, build_example, ensure_venv
+
 VENV = Path(os.environ.get("SLAMKIT_OCTOMAP_VENV", ROOT / "target" / "octomap-venv"))
 # slamkit's OctreeConfig defaults (OctoMap's own defaults except p_hit, 0.7 there).
 SENSOR = dict(p_hit=0.85, p_miss=0.4, p_min=0.12, p_max=0.97, threshold=0.5)
 MAX_RANGE_M = 3.5
 FX, CX, CY = 585.0, 320.0, 240.0
-
-
-def ensure_venv():
-    """Re-runs this script inside a virtualenv that has pyoctomap and NumPy."""
-    py = VENV / "bin" / "python"
-    if Path(sys.prefix).resolve() == VENV.resolve():
-        return
-    if not py.exists():
-        subprocess.run([sys.executable, "-m", "venv", str(VENV)], check=True)
-        subprocess.run([str(py), "-m", "pip", "install", "-q", "pyoctomap==1.2.2", "numpy",
-                        "pillow"],
-                       check=True)
-    os.execv(str(py), [str(py), __file__, *sys.argv[1:]])
 
 
 def read_depth_mm(path):
@@ -155,9 +142,7 @@ def octomap_build(scans, res, mode):
     return tree, (time.thread_time_ns() - t0) * 1e-6
 
 
-def slamkit_run(scans_path, res, reps, bt_path):
-    target = Path(os.environ.get("CARGO_TARGET_DIR", ROOT / "target"))
-    exe = target / "release" / "examples" / "octree_timing"
+def slamkit_run(exe, scans_path, res, reps, bt_path):
     out = subprocess.run([str(exe), "--reps", str(reps), "--max-range", str(MAX_RANGE_M),
                           "--bt", str(bt_path), str(res), str(scans_path)],
                          check=True, capture_output=True, text=True).stdout
@@ -190,13 +175,13 @@ def occupied_leaves(tree):
     return sum(1 for it in tree.begin_leafs() if tree.isNodeOccupied(it))
 
 
-def compare(name, scans, res, reps, tmp):
+def compare(exe, name, scans, res, reps, tmp):
     import pyoctomap
 
     scans_path = Path(tmp) / f"{name}.bin"
     bt_sk, bt_om = Path(tmp) / f"{name}_slamkit.bt", Path(tmp) / f"{name}_octomap.bt"
     write_scans(scans, scans_path)
-    sk = slamkit_run(scans_path, res, reps, bt_sk)
+    sk = slamkit_run(exe, scans_path, res, reps, bt_sk)
     ms = {m: statistics.median(octomap_build(scans, res, m)[1] for _ in range(reps))
           for m in ("eager", "lazy", "floor")}
     om, _ = octomap_build(scans, res, "eager")
@@ -245,14 +230,13 @@ def report(r):
 
 
 def main():
-    ensure_venv()
+    ensure_venv(VENV, ["pyoctomap==1.2.2", "numpy", "pillow"], __file__)
     ap = argparse.ArgumentParser()
     ap.add_argument("--reps", type=int, default=5)
     ap.add_argument("--frames", type=int, default=30)
     args = ap.parse_args()
     data = Path(os.environ.get("SLAMKIT_DATA", ROOT.parent / "shared" / "data"))
-    subprocess.run(["cargo", "build", "--release", "-q", "-p", "slamkit-map",
-                    "--example", "octree_timing"], cwd=ROOT, check=True)
+    exe = build_example("slamkit-map", "octree_timing")
     sets = {"7-Scenes RedKitchen": sevenscenes_scans(data, args.frames),
             "synthetic room": synthetic_scans()}
     print(f"single thread (thread CPU time); median of {args.reps} builds; OctoMap = pyoctomap "
@@ -261,7 +245,7 @@ def main():
     with tempfile.TemporaryDirectory() as tmp:
         for name, scans in sets.items():
             for res in (0.09, 0.05):
-                report(compare(name, scans, res, args.reps, tmp))
+                report(compare(exe, name, scans, res, args.reps, tmp))
 
 
 if __name__ == "__main__":

@@ -20,24 +20,12 @@ import json
 import os
 import statistics
 import subprocess
-import sys
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
+from bench_common import ROOT, build_example, ensure_venv
+
 VENV = Path(os.environ.get("SLAMKIT_OPENCV_VENV", ROOT / "target" / "opencv-venv"))
-
-
-def ensure_venv():
-    """Re-runs this script inside a virtualenv that has OpenCV and NumPy."""
-    py = VENV / "bin" / "python"
-    if Path(sys.prefix).resolve() == VENV.resolve():
-        return
-    if not py.exists():
-        subprocess.run([sys.executable, "-m", "venv", str(VENV)], check=True)
-        subprocess.run([str(py), "-m", "pip", "install", "-q", "opencv-python-headless", "numpy"],
-                       check=True)
-    os.execv(str(py), [str(py), __file__, *sys.argv[1:]])
 
 
 def median_ms(reps, fn):
@@ -97,17 +85,14 @@ def opencv_times(paths, reps):
 
 
 def slamkit_times(paths, reps):
-    subprocess.run(["cargo", "build", "--release", "-q", "-p", "slamkit-vision",
-                    "--example", "kernel_timing"], cwd=ROOT, check=True)
-    target = Path(os.environ.get("CARGO_TARGET_DIR", ROOT / "target"))
-    exe = target / "release" / "examples" / "kernel_timing"
+    exe = build_example("slamkit-vision", "kernel_timing")
     out = subprocess.run([str(exe), "--reps", str(reps), *map(str, paths)],
                          check=True, capture_output=True, text=True).stdout
     return json.loads(out)
 
 
 def main():
-    ensure_venv()
+    ensure_venv(VENV, ["opencv-python-headless", "numpy"], __file__)
     ap = argparse.ArgumentParser()
     ap.add_argument("--reps", type=int, default=15)
     ap.add_argument("--frames", type=int, default=10)
