@@ -9,44 +9,21 @@
 //! CSAIL ≤ 0.106 m). Skipped when `SLAMKIT_DATA` is not set; run with `--release`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers fail loudly
 
-use slamkit_eval::{relations_error, GroundTruthRelation};
+mod common;
+
+use common::{data_dir, relations_mean_error};
 use slamkit_lidar::icp_slam::{run_icp_slam, IcpSlamConfig};
 use std::path::PathBuf;
 
-fn data_dir(test: &str) -> Option<PathBuf> {
-    match std::env::var("SLAMKIT_DATA") {
-        Ok(dir) => Some(PathBuf::from(dir).join("lidar2d")),
-        Err(_) => {
-            eprintln!("skipped: {test}: SLAMKIT_DATA not set");
-            None
-        }
-    }
-}
-
-/// Runs ICP-SLAM with the default configuration and returns the mean translational error \[m\].
-fn relations_mean_error(dir: PathBuf, log: &str, relations: &str) -> f64 {
+/// Runs ICP-SLAM with the default configuration on `log` and returns its mean translational
+/// relations error \[m\].
+fn icp_slam_error(dir: PathBuf, log: &str, relations: &str) -> f64 {
     let scans = slamkit_io::carmen::read_carmen(&dir.join(log))
         .unwrap()
         .scans;
     let out = run_icp_slam(&scans, &IcpSlamConfig::default(), |_| {}).unwrap();
     assert_eq!(out.trajectory.len(), scans.len(), "one pose per scan");
-    let relations: Vec<GroundTruthRelation> =
-        slamkit_io::relations::read_relations(&dir.join(relations))
-            .unwrap()
-            .into_iter()
-            .map(|r| GroundTruthRelation {
-                t1: r.t1,
-                t2: r.t2,
-                t1_from_t2: r.t1_from_t2,
-            })
-            .collect();
-    let stats = relations_error(&relations, &out.trajectory).unwrap();
-    assert_eq!(stats.missing, 0, "every relation stamp is a scan stamp");
-    eprintln!(
-        "{log}: {:.4} ± {:.4} m, {:.3} ± {:.3} deg, {} relations",
-        stats.trans_mean, stats.trans_std, stats.rot_mean_deg, stats.rot_std_deg, stats.count
-    );
-    stats.trans_mean
+    relations_mean_error(log, &dir.join(relations), &out.trajectory)
 }
 
 #[test]
@@ -54,7 +31,7 @@ fn icp_slam_intel() {
     let Some(dir) = data_dir("icp_slam_intel") else {
         return;
     };
-    let err = relations_mean_error(
+    let err = icp_slam_error(
         dir,
         "intel/intel.fromrosbag.clf.gz",
         "intel/intel.relations",
@@ -67,7 +44,7 @@ fn icp_slam_aces() {
     let Some(dir) = data_dir("icp_slam_aces") else {
         return;
     };
-    let err = relations_mean_error(dir, "aces/aces.fromrosbag.clf.gz", "aces/aces.relations");
+    let err = icp_slam_error(dir, "aces/aces.fromrosbag.clf.gz", "aces/aces.relations");
     assert!(err < 0.045, "ACES mean error {err} m");
 }
 
@@ -76,7 +53,7 @@ fn icp_slam_mit_csail() {
     let Some(dir) = data_dir("icp_slam_mit_csail") else {
         return;
     };
-    let err = relations_mean_error(
+    let err = icp_slam_error(
         dir,
         "mit-csail/mit-csail.clf",
         "mit-csail/mit-csail.relations",

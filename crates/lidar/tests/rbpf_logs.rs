@@ -13,22 +13,14 @@
 //! Skipped when `SLAMKIT_DATA` is not set; run with `--release`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers fail loudly
 
+mod common;
+
+use common::{data_dir, relations_mean_error};
 use slamkit_core::LaserScan;
-use slamkit_eval::{relations_error, GroundTruthRelation};
 use slamkit_lidar::mcl::{run_mcl, MclConfig};
 use slamkit_lidar::rbpf::{run_rbpf, RbpfConfig, RbpfOutput};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::OnceLock;
-
-fn data_dir(test: &str) -> Option<PathBuf> {
-    match std::env::var("SLAMKIT_DATA") {
-        Ok(dir) => Some(PathBuf::from(dir).join("lidar2d")),
-        Err(_) => {
-            eprintln!("skipped: {test}: SLAMKIT_DATA not set");
-            None
-        }
-    }
-}
 
 fn config() -> RbpfConfig {
     RbpfConfig {
@@ -41,33 +33,13 @@ fn read_scans(path: &Path) -> Vec<LaserScan> {
     slamkit_io::carmen::read_carmen(path).unwrap().scans
 }
 
-/// Mean translational relations error of `out` \[m\].
-fn relations_mean_error(log: &str, relations: &Path, out: &RbpfOutput) -> f64 {
-    let relations: Vec<GroundTruthRelation> = slamkit_io::relations::read_relations(relations)
-        .unwrap()
-        .into_iter()
-        .map(|r| GroundTruthRelation {
-            t1: r.t1,
-            t2: r.t2,
-            t1_from_t2: r.t1_from_t2,
-        })
-        .collect();
-    let stats = relations_error(&relations, &out.trajectory).unwrap();
-    assert_eq!(stats.missing, 0, "every relation stamp is a scan stamp");
-    eprintln!(
-        "{log}: {:.4} ± {:.4} m, {:.3} ± {:.3} deg, {} relations",
-        stats.trans_mean, stats.trans_std, stats.rot_mean_deg, stats.rot_std_deg, stats.count
-    );
-    stats.trans_mean
-}
-
 /// Runs the filter on `log` and returns its scans, output and mean relations error.
 fn run(dir: &Path, log: &str, relations: &str) -> (Vec<LaserScan>, RbpfOutput, f64) {
     let scans = read_scans(&dir.join(log));
     let out = run_rbpf(&scans, &config(), |_| {}).unwrap();
     assert_eq!(out.trajectory.len(), scans.len(), "one pose per scan");
     assert_eq!(out.stats.scans_skipped, 0);
-    let err = relations_mean_error(log, &dir.join(relations), &out);
+    let err = relations_mean_error(log, &dir.join(relations), &out.trajectory);
     (scans, out, err)
 }
 
