@@ -52,12 +52,6 @@ pub fn timings_json(timings: &slamkit_core::StageTimings) -> serde_json::Value {
     serde_json::to_value(timings.summary()).unwrap_or(serde_json::Value::Null)
 }
 
-/// Answers for subcommands whose algorithms belong to an open issue: a clear error, non-zero
-/// exit, rather than a silent stub.
-pub fn not_yet(command: &str, issue: &str) -> anyhow::Result<()> {
-    anyhow::bail!("`slamkit {command}` is not implemented yet ({issue}); see README.md")
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

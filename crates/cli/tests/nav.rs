@@ -1,0 +1,60 @@
+//! `slamkit nav` end to end: the simulated ground robot, localised by lidar ICP-SLAM, drives to
+//! the office world's built-in goal and writes every output; goals off the world or inside an
+//! obstacle exit non-zero with a message that says why.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers fail loudly
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn nav(args: &[&str], out: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_slamkit"))
+        .arg("nav")
+        .args(args)
+        .arg("--out")
+        .arg(out)
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn office_seed_1_reaches_the_built_in_goal() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("nav");
+    let result = nav(&["--world", "office", "--seed", "1"], &out);
+    assert!(result.status.success(), "{result:?}");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report["localisation"], "lidar ICP-SLAM");
+    assert_eq!(report["input"]["goal_m"], serde_json::json!([11.5, 5.0]));
+    let m = &report["metrics"];
+    assert_eq!(m["reached"], true, "{m}");
+    let length = m["path_length_m"].as_f64().unwrap();
+    let optimal = m["optimal_length_m"].as_f64().unwrap();
+    assert!(length > 0.8 * optimal && length < 1.25 * optimal, "{m}");
+    assert!(m["max_cross_track_m"].as_f64().unwrap() <= 0.17, "{m}");
+    assert!(m["time_s"].as_f64().unwrap() < 120.0, "{m}");
+    for file in ["map.png", "trajectory.tum", "groundtruth.tum"] {
+        assert!(out.join(file).metadata().unwrap().len() > 100, "{file}");
+    }
+    let tum = std::fs::read_to_string(out.join("trajectory.tum")).unwrap();
+    let poses = tum.lines().filter(|l| !l.starts_with('#')).count();
+    assert_eq!(poses, report["frames"]["read"].as_u64().unwrap() as usize);
+}
+
+#[test]
+fn bad_goals_are_clear_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases = [
+        ("40,3", "outside the map"),
+        ("0.5,x", "not a number"),
+        ("1.5,3.5", "lies in an obstacle"),
+    ];
+    for (goal, message) in cases {
+        let result = nav(&["--world", "small", "--goal", goal], &dir.path().join("o"));
+        assert!(!result.status.success(), "{goal}");
+        let stderr = String::from_utf8_lossy(&result.stderr);
+        assert!(stderr.contains(message), "{goal}: {stderr}");
+    }
+    let result = nav(&["--world", "nowhere"], &dir.path().join("o"));
+    assert!(!result.status.success());
+}
