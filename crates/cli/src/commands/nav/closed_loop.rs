@@ -38,6 +38,11 @@ use std::time::Instant;
 /// of small ground robots (12 m for an RPLIDAR A1).
 pub const GROUND_LIDAR_RANGE_M: f64 = 8.0;
 
+/// Look-ahead of the tracker in the loop \[m\]: the tracker's 0.5 m default cuts the hairpin
+/// around the end of the `large` world's wall at (5, 4) so tightly that the body touches it
+/// (seeds 1 to 9 stuck there); 0.3 m follows it (seeds 1 to 10 reach the goal).
+pub const TRACKER_LOOKAHEAD_M: f64 = 0.3;
+
 /// Everything the loop needs besides the world, goal and seed.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -73,7 +78,10 @@ impl Default for NavLoopConfig {
             robot_radius_m: 0.15,
             safety_margin_m: 0.05,
             grid: OccupancyGridConfig::default(),
-            tracker: TrackerConfig::default(),
+            tracker: TrackerConfig {
+                lookahead_m: TRACKER_LOOKAHEAD_M,
+                ..TrackerConfig::default()
+            },
             slam: IcpSlamConfig::default(),
             sim: SimConfig {
                 robot: RobotKind::DiffDrive,
