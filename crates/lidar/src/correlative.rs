@@ -85,8 +85,11 @@ impl Field {
             resolution_m: res,
             width: side,
             height: side,
-            cells: vec![0.0; side * side],
+            cells: Vec::new(),
         };
+        // The likelihood falls with distance, so each cell keeps the squared distance to its
+        // nearest point and takes one exponential at the end.
+        let mut nearest_sq = vec![f64::INFINITY; side * side];
         let reach = (3.0 * sigma / res).ceil() as i64;
         for p in points {
             let (ci, cj) = field.cell(p);
@@ -96,17 +99,24 @@ impl Field {
             }
             for j in cj - reach..=cj + reach {
                 for i in ci - reach..=ci + reach {
-                    let Some(k) = field.offset(i, j) else {
+                    let Some(d2) = field.offset(i, j).and_then(|k| nearest_sq.get_mut(k)) else {
                         continue;
                     };
                     let c = origin + Vector2::new(i as f64 + 0.5, j as f64 + 0.5) * res;
-                    let v = (-(c - p).norm_squared() / (2.0 * sigma * sigma)).exp() as f32;
-                    if let Some(cell) = field.cells.get_mut(k) {
-                        *cell = cell.max(v);
-                    }
+                    *d2 = d2.min((c - p).norm_squared());
                 }
             }
         }
+        field.cells = nearest_sq
+            .into_iter()
+            .map(|d2| {
+                if d2.is_finite() {
+                    (-d2 / (2.0 * sigma * sigma)).exp() as f32
+                } else {
+                    0.0
+                }
+            })
+            .collect();
         field
     }
 
@@ -156,9 +166,65 @@ impl Field {
         }
     }
 
-    /// Sum of the field under `cells` shifted by `(di, dj)`.
-    fn score(&self, cells: &[(i64, i64)], di: i64, dj: i64) -> f64 {
-        cells.iter().map(|&(i, j)| self.value(i + di, j + dj)).sum()
+    /// Sum of the field under the footprint's cells shifted by `(di, dj)`. When the shifted
+    /// footprint lies inside the grid (the usual case) the cells are read by linear offset
+    /// without per-cell range checks; the sum, taken in the same order, is the same.
+    fn score(&self, footprint: &Footprint, di: i64, dj: i64) -> f64 {
+        let (w, h) = (self.width as i64, self.height as i64);
+        let inside = footprint.min.0 + di >= 0
+            && footprint.min.1 + dj >= 0
+            && footprint.max.0 + di < w
+            && footprint.max.1 + dj < h;
+        if inside && footprint.width == w {
+            let shift = dj * w + di;
+            footprint
+                .linear
+                .iter()
+                .map(|&k| {
+                    usize::try_from(k + shift)
+                        .ok()
+                        .and_then(|k| self.cells.get(k))
+                        .map_or(0.0, |v| f64::from(*v))
+                })
+                .sum()
+        } else {
+            footprint
+                .cells
+                .iter()
+                .map(|&(i, j)| self.value(i + di, j + dj))
+                .sum()
+        }
+    }
+}
+
+/// The cells of the source points at one rotation, with their bounding box and their linear
+/// offsets in a grid `width` cells wide.
+struct Footprint {
+    cells: Vec<(i64, i64)>,
+    linear: Vec<i64>,
+    width: i64,
+    min: (i64, i64),
+    max: (i64, i64),
+}
+
+impl Footprint {
+    fn new(cells: Vec<(i64, i64)>, width: usize) -> Self {
+        let width = width as i64;
+        let fold = |init: (i64, i64), f: fn(i64, i64) -> i64| {
+            cells
+                .iter()
+                .fold(init, |acc, &(i, j)| (f(acc.0, i), f(acc.1, j)))
+        };
+        let min = fold((i64::MAX, i64::MAX), i64::min);
+        let max = fold((i64::MIN, i64::MIN), i64::max);
+        let linear = cells.iter().map(|&(i, j)| j * width + i).collect();
+        Self {
+            cells,
+            linear,
+            width,
+            min,
+            max,
+        }
     }
 }
 
@@ -202,11 +268,12 @@ pub fn correlative_match(
     let n_ang = (config.angular_window_rad / step).ceil() as i64;
     let theta0 = initial.rotation.angle();
     let angles: Vec<f64> = (-n_ang..=n_ang).map(|a| theta0 + a as f64 * step).collect();
-    let rotated: Vec<Vec<(i64, i64)>> = angles
+    let rotated: Vec<Footprint> = angles
         .iter()
         .map(|&theta| {
             let pose = Pose2::new(initial.translation.vector, theta);
-            source.iter().map(|p| field.cell(&(pose * p))).collect()
+            let cells = source.iter().map(|p| field.cell(&(pose * p))).collect();
+            Footprint::new(cells, field.width)
         })
         .collect();
 

@@ -13,6 +13,7 @@ use crate::icp::{align, IcpConfig};
 use crate::point_map::{Keyframe, KeyframeMap};
 use crate::LidarError;
 use nalgebra::Point2;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use slamkit_core::Pose2;
 
@@ -206,9 +207,11 @@ pub fn find_closures(
         .copied()
         .collect();
     let coarse_source = voxel_downsample(&source, config.search_voxel_m);
+    candidates.truncate(config.max_candidates);
+    // Candidates are independent: search them in parallel; `collect` keeps their order, so
+    // the result does not depend on the thread count.
     candidates
-        .into_iter()
-        .take(config.max_candidates)
+        .into_par_iter()
         .filter_map(|(_, from)| {
             let submap = submap(keyframes, from, old, config)?;
             let guess = if window > fine_window {
