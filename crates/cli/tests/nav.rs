@@ -1,6 +1,6 @@
 //! `slamkit nav` end to end: the simulated ground robot, localised by lidar ICP-SLAM, drives to
 //! the office world's built-in goal and writes every output; goals off the world or inside an
-//! obstacle exit non-zero with a message that says why.
+//! obstacle, and bad settings files, exit non-zero with a message that says why.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers fail loudly
 
 use std::path::Path;
@@ -57,4 +57,26 @@ fn bad_goals_are_clear_errors() {
     }
     let result = nav(&["--world", "nowhere"], &dir.path().join("o"));
     assert!(!result.status.success());
+    let config = dir.path().join("bad.toml");
+    std::fs::write(&config, "robot_radius_m = -1.0\n").unwrap();
+    let config = config.to_str().unwrap();
+    let result = nav(
+        &["--world", "small", "--config", config],
+        &dir.path().join("o"),
+    );
+    let stderr = String::from_utf8_lossy(&result.stderr);
+    assert!(
+        !result.status.success() && stderr.contains("robot_radius_m"),
+        "{stderr}"
+    );
+    std::fs::write(dir.path().join("bad.toml"), "nope = 1\n").unwrap();
+    let result = nav(
+        &["--world", "small", "--config", config],
+        &dir.path().join("o"),
+    );
+    let stderr = String::from_utf8_lossy(&result.stderr);
+    assert!(
+        !result.status.success() && stderr.contains("parsing"),
+        "{stderr}"
+    );
 }

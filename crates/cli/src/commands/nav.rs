@@ -59,14 +59,7 @@ pub fn run(args: &NavArgs) -> anyhow::Result<()> {
         None => Point2::new(world.nav_goal[0], world.nav_goal[1]),
     };
     let world_name = world.name.clone();
-    let config: NavLoopConfig = match &args.config {
-        Some(path) => {
-            let text = std::fs::read_to_string(path)
-                .with_context(|| format!("reading {}", path.display()))?;
-            toml::from_str(&text).with_context(|| format!("parsing {}", path.display()))?
-        }
-        None => NavLoopConfig::default(),
-    };
+    let config = load_config(args.config.as_deref())?;
     let outcome = run_nav_loop(world, goal, args.seed, &config)?;
     let out = prepare_out_dir(&args.out)?;
     write_tum(&out.join("trajectory.tum"), &outcome.estimate)?;
@@ -119,6 +112,16 @@ pub fn run(args: &NavArgs) -> anyhow::Result<()> {
         out.display()
     );
     Ok(())
+}
+
+/// The loop settings from a TOML file (missing fields default), or the defaults.
+fn load_config(path: Option<&Path>) -> anyhow::Result<NavLoopConfig> {
+    let Some(path) = path else {
+        return Ok(NavLoopConfig::default());
+    };
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    toml::from_str(&text).with_context(|| format!("parsing {}", path.display()))
 }
 
 /// Draws the robot's final map with every plan (red), the true-map shortest path (green) and

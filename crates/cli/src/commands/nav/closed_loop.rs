@@ -96,6 +96,21 @@ impl Default for NavLoopConfig {
 }
 
 impl NavLoopConfig {
+    /// Checks the loop's own values (the parts check theirs when built).
+    pub fn validate(&self) -> anyhow::Result<()> {
+        anyhow::ensure!(
+            self.replan_period_s > 0.0 && self.time_limit_s.is_finite() && self.time_limit_s > 0.0,
+            "replan_period_s and time_limit_s must be positive and finite"
+        );
+        anyhow::ensure!(
+            [self.robot_radius_m, self.safety_margin_m]
+                .iter()
+                .all(|r| r.is_finite() && *r >= 0.0),
+            "robot_radius_m and safety_margin_m must be finite and not negative"
+        );
+        Ok(())
+    }
+
     /// Obstacle inflation in grid cells: the robot's radius and the safety margin, rounded up.
     pub fn inflate_cells(&self) -> usize {
         let radius_m = self.robot_radius_m + self.safety_margin_m;
@@ -350,6 +365,21 @@ struct LoopState {
 }
 
 impl LoopState {
+    /// Empty map, no path; the SLAM frame sits at the robot's start pose `world_from_slam`.
+    fn new(config: &NavLoopConfig, world_from_slam: Pose2) -> anyhow::Result<Self> {
+        Ok(Self {
+            slam: IcpSlam::new(config.slam.clone()).context("ICP-SLAM configuration")?,
+            grid: OccupancyGrid::new(config.grid.clone()).context("grid configuration")?,
+            tracker: PathTracker::new(config.tracker.clone()).context("tracker configuration")?,
+            world_from_slam,
+            plans: Vec::new(),
+            plan_failures: 0,
+            next_replan_s: 0.0,
+            replan_period_s: config.replan_period_s,
+            timings: StageTimings::default(),
+        })
+    }
+
     /// Localises and maps with `scan`; returns the estimated `world_from_base`.
     fn localise(&mut self, scan: &LaserScan) -> anyhow::Result<Pose2> {
         let started = Instant::now();
@@ -387,9 +417,51 @@ impl LoopState {
 /// Running scores of a run.
 #[derive(Default)]
 struct Scores {
+    ground_truth: Trajectory,
+    estimate: Trajectory,
     max_cross_track_m: f64,
     localisation_errors_m: Vec<f64>,
     blocked_steps: usize,
+}
+
+impl Scores {
+    /// Records the true and estimated poses at time `t`.
+    fn record_poses(&mut self, t: f64, truth: Pose3, estimate: Pose3) {
+        let error = (truth.translation.vector - estimate.translation.vector).norm();
+        self.localisation_errors_m.push(error);
+        self.ground_truth.push(t, truth);
+        self.estimate.push(t, estimate);
+    }
+
+    /// The outcome of a run that ended at `time_s`, `final_distance_m` from the goal.
+    fn finish(
+        self,
+        state: LoopState,
+        optimal: PlannedPath,
+        time_s: f64,
+        final_distance_m: f64,
+        config: &NavLoopConfig,
+    ) -> NavOutcome {
+        let errors = &self.localisation_errors_m;
+        NavOutcome {
+            reached: final_distance_m <= config.goal_tolerance_m,
+            time_s,
+            path_length_m: self.ground_truth.path_length_m(),
+            max_cross_track_m: self.max_cross_track_m,
+            localisation_error_mean_m: errors.iter().sum::<f64>() / errors.len().max(1) as f64,
+            localisation_error_max_m: errors.iter().copied().fold(0.0, f64::max),
+            final_distance_m,
+            plan_failures: state.plan_failures,
+            blocked_steps: self.blocked_steps,
+            slam_stats: *state.slam.stats(),
+            timings: state.timings,
+            plans: state.plans,
+            grid: state.grid,
+            ground_truth: self.ground_truth,
+            estimate: self.estimate,
+            optimal,
+        }
+    }
 }
 
 /// Drives the robot from the start of `world`'s drive path to `goal` (world frame); see the
@@ -404,18 +476,7 @@ pub fn run_nav_loop(
     seed: u64,
     config: &NavLoopConfig,
 ) -> anyhow::Result<NavOutcome> {
-    anyhow::ensure!(
-        config.replan_period_s > 0.0
-            && config.time_limit_s.is_finite()
-            && config.time_limit_s > 0.0,
-        "replan_period_s and time_limit_s must be positive and finite"
-    );
-    anyhow::ensure!(
-        [config.robot_radius_m, config.safety_margin_m]
-            .iter()
-            .all(|r| r.is_finite() && *r >= 0.0),
-        "robot_radius_m and safety_margin_m must be finite and not negative"
-    );
+    config.validate()?;
     let mut robot = Robot::new(world, config, seed)?;
     let start = robot.truth;
     let inflate = config.inflate_cells();
@@ -423,33 +484,18 @@ pub fn run_nav_loop(
     let start_m = Point2::from(start.translation.vector);
     let optimal = plan_inflated(&truth_grid, &start_m, &goal, inflate)
         .with_context(|| format!("goal {},{} on the true map of the world", goal.x, goal.y))?;
-    let mut state = LoopState {
-        slam: IcpSlam::new(config.slam.clone()).context("ICP-SLAM configuration")?,
-        grid: OccupancyGrid::new(config.grid.clone()).context("grid configuration")?,
-        tracker: PathTracker::new(config.tracker.clone()).context("tracker configuration")?,
-        world_from_slam: start,
-        plans: Vec::new(),
-        plan_failures: 0,
-        next_replan_s: 0.0,
-        replan_period_s: config.replan_period_s,
-        timings: StageTimings::default(),
-    };
+    let mut state = LoopState::new(config, start)?;
     let rate_hz = config.sim.lidar.rate_hz;
     let dt = 1.0 / rate_hz;
-    let (mut ground_truth, mut estimate) = (Trajectory::new(), Trajectory::new());
     let mut scores = Scores::default();
     let mut t = 0.0;
     for index in 0.. {
         t = index as f64 / rate_hz;
         let scan = robot.scan(index, t);
         let pose = state.localise(&scan)?;
-        ground_truth.push(t, robot.truth3(&robot.truth));
-        estimate.push(t, robot.truth3(&pose));
+        scores.record_poses(t, robot.truth3(&robot.truth), robot.truth3(&pose));
         let position = Point2::from(pose.translation.vector);
         let truth_position = Point2::from(robot.truth.translation.vector);
-        scores
-            .localisation_errors_m
-            .push((position - truth_position).norm());
         state.replan(t, &position, &goal, inflate);
         let started = Instant::now();
         let command = state.tracker.step(Some(&pose), dt);
@@ -469,25 +515,7 @@ pub fn run_nav_loop(
         scores.blocked_steps += usize::from(!moved);
     }
     let final_distance_m = (Point2::from(robot.truth.translation.vector) - goal).norm();
-    let errors = &scores.localisation_errors_m;
-    Ok(NavOutcome {
-        reached: final_distance_m <= config.goal_tolerance_m,
-        time_s: t,
-        path_length_m: ground_truth.path_length_m(),
-        max_cross_track_m: scores.max_cross_track_m,
-        localisation_error_mean_m: errors.iter().sum::<f64>() / errors.len().max(1) as f64,
-        localisation_error_max_m: errors.iter().copied().fold(0.0, f64::max),
-        final_distance_m,
-        plan_failures: state.plan_failures,
-        blocked_steps: scores.blocked_steps,
-        slam_stats: *state.slam.stats(),
-        timings: state.timings,
-        plans: state.plans,
-        grid: state.grid,
-        ground_truth,
-        estimate,
-        optimal,
-    })
+    Ok(scores.finish(state, optimal, t, final_distance_m, config))
 }
 
 #[cfg(test)]
