@@ -12,6 +12,7 @@
 //! answer equals the exhaustive one. It needs no odometry, only a window large enough to hold
 //! the true pose.
 
+use crate::error::check_fields;
 use crate::LidarError;
 use nalgebra::{Point2, Vector2};
 use serde::{Deserialize, Serialize};
@@ -346,16 +347,10 @@ fn validate(config: &CorrelativeConfig) -> Result<(), LidarError> {
             config.max_angular_step_rad > 0.0,
         ),
     ];
-    for (field, value, ok) in checks {
-        if !(ok && value.is_finite()) {
-            return Err(LidarError::InvalidConfig {
-                field,
-                value: value.to_string(),
-                reason: "out of range (windows >= 0, steps and sizes > 0, finite)",
-            });
-        }
-    }
-    Ok(())
+    check_fields(
+        checks,
+        "out of range (windows >= 0, steps and sizes > 0, finite)",
+    )
 }
 
 #[cfg(test)]

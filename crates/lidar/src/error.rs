@@ -34,3 +34,32 @@ pub enum LidarError {
         reason: &'static str,
     },
 }
+
+impl LidarError {
+    /// [`LidarError::InvalidConfig`] for `field` holding `value`.
+    pub(crate) fn invalid_config(field: &'static str, value: f64, reason: &'static str) -> Self {
+        Self::InvalidConfig {
+            field,
+            value: value.to_string(),
+            reason,
+        }
+    }
+}
+
+/// One configuration field to check: its name, its value and whether the value is in range.
+pub(crate) type FieldCheck = (&'static str, f64, bool);
+
+/// The first field that is out of range or not finite, as [`LidarError::InvalidConfig`] with
+/// `reason`; `Ok` when all pass.
+pub(crate) fn check_fields(
+    checks: impl IntoIterator<Item = FieldCheck>,
+    reason: &'static str,
+) -> Result<(), LidarError> {
+    match checks
+        .into_iter()
+        .find(|(_, value, ok)| !(*ok && value.is_finite()))
+    {
+        Some((field, value, _)) => Err(LidarError::invalid_config(field, value, reason)),
+        None => Ok(()),
+    }
+}

@@ -114,7 +114,11 @@ impl IcpConfig {
             if value.is_finite() && value > 0.0 {
                 Ok(())
             } else {
-                Err(invalid(field, value, "must be finite and > 0"))
+                Err(LidarError::invalid_config(
+                    field,
+                    value,
+                    "must be finite and > 0",
+                ))
             }
         };
         positive("kernel_scale_m", self.kernel_scale_m)?;
@@ -123,31 +127,27 @@ impl IcpConfig {
         positive("min_step_trans_m", self.min_step_trans_m)?;
         positive("min_step_rot_rad", self.min_step_rot_rad)?;
         if !(self.dist_shrink_factor > 0.0 && self.dist_shrink_factor <= 1.0) {
-            return Err(invalid(
+            return Err(LidarError::invalid_config(
                 "dist_shrink_factor",
                 self.dist_shrink_factor,
                 "must be in (0, 1]",
             ));
         }
         if self.max_iterations_per_threshold == 0 {
-            return Err(invalid("max_iterations_per_threshold", 0.0, "must be >= 1"));
+            return Err(LidarError::invalid_config(
+                "max_iterations_per_threshold",
+                0.0,
+                "must be >= 1",
+            ));
         }
         if self.min_correspondences < 3 {
-            return Err(invalid(
+            return Err(LidarError::invalid_config(
                 "min_correspondences",
                 self.min_correspondences as f64,
                 "must be >= 3",
             ));
         }
         Ok(())
-    }
-}
-
-fn invalid(field: &'static str, value: f64, reason: &'static str) -> LidarError {
-    LidarError::InvalidConfig {
-        field,
-        value: value.to_string(),
-        reason,
     }
 }
 

@@ -17,6 +17,7 @@
 
 use crate::cloud::{estimate_normals, scan_points, voxel_downsample};
 use crate::correlative::{correlative_match, CorrelativeConfig};
+use crate::error::check_fields;
 use crate::icp::{align, IcpConfig, IcpResult};
 use crate::point_map::{Keyframe, KeyframeMap};
 use crate::pose_graph::{Edge, PoseGraph};
@@ -140,16 +141,7 @@ impl IcpSlamConfig {
                 self.normal_max_flatness > 0.0,
             ),
         ];
-        for (field, value, ok) in checks {
-            if !(ok && value.is_finite()) {
-                return Err(LidarError::InvalidConfig {
-                    field,
-                    value: value.to_string(),
-                    reason: "out of range",
-                });
-            }
-        }
-        Ok(())
+        check_fields(checks, "out of range")
     }
 }
 

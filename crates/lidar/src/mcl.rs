@@ -25,6 +25,7 @@
 //! pose of every scan is the estimate at the last update moved on by odometry. The estimate is
 //! the weighted mean of the particles within `cluster_radius_m` of the heaviest one.
 
+use crate::error::check_fields;
 use crate::motion::{odometry_poses, MotionModelConfig, ScanOdometryConfig};
 use crate::particles::{
     effective_sample_size, filter_checks, low_variance_resample, moved_enough, normalized_weights,
@@ -132,13 +133,12 @@ impl Default for MclConfig {
 impl MclConfig {
     /// Checks every field's range.
     pub fn validate(&self) -> Result<(), LidarError> {
-        let invalid = |field, value: f64| LidarError::InvalidConfig {
-            field,
-            value: value.to_string(),
-            reason: "out of range",
-        };
         if !self.motion.is_valid() {
-            return Err(invalid("motion", f64::NAN));
+            return Err(LidarError::invalid_config(
+                "motion",
+                f64::NAN,
+                "out of range",
+            ));
         }
         self.scan_odometry.icp.validate()?;
         let positive = |v: f64| v.is_finite() && v > 0.0;
@@ -199,12 +199,7 @@ impl MclConfig {
             self.update_angular_rad,
             self.resample_threshold,
         );
-        for (field, value, ok) in checks.into_iter().chain(shared) {
-            if !(ok && value.is_finite()) {
-                return Err(invalid(field, value));
-            }
-        }
-        Ok(())
+        check_fields(checks.into_iter().chain(shared), "out of range")
     }
 }
 

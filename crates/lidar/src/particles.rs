@@ -8,6 +8,7 @@
 //! ("low variance", Thrun et al., *Probabilistic Robotics*, table 4.4): one random offset, so a
 //! particle of weight `w` is copied `⌊N·w⌋` or `⌈N·w⌉` times.
 
+use crate::error::FieldCheck;
 use rand::Rng;
 use slamkit_core::pose::wrap_angle;
 use slamkit_core::Pose2;
@@ -26,7 +27,7 @@ pub(crate) fn filter_checks(
     update_linear_m: f64,
     update_angular_rad: f64,
     resample_threshold: f64,
-) -> [(&'static str, f64, bool); 3] {
+) -> [FieldCheck; 3] {
     [
         ("update_linear_m", update_linear_m, update_linear_m >= 0.0),
         (

@@ -23,6 +23,7 @@
 
 pub mod proposal;
 
+use crate::error::check_fields;
 use crate::motion::{odometry_poses, MotionModelConfig, ScanOdometryConfig};
 use crate::particles::{
     effective_sample_size, filter_checks, low_variance_resample, moved_enough, normalized_weights,
@@ -99,18 +100,18 @@ impl Default for RbpfConfig {
 impl RbpfConfig {
     /// Checks every field's range.
     pub fn validate(&self) -> Result<(), LidarError> {
-        self.grid
-            .validate()
-            .map_err(|_| invalid("grid", f64::NAN, "invalid occupancy grid configuration"))?;
+        self.grid.validate().map_err(|_| {
+            LidarError::invalid_config("grid", f64::NAN, "invalid occupancy grid configuration")
+        })?;
         if !self.proposal.is_valid() {
-            return Err(invalid(
+            return Err(LidarError::invalid_config(
                 "proposal",
                 f64::NAN,
                 "a proposal value is out of range",
             ));
         }
         if !self.motion.is_valid() {
-            return Err(invalid(
+            return Err(LidarError::invalid_config(
                 "motion",
                 f64::NAN,
                 "a motion noise value is out of range",
@@ -118,7 +119,7 @@ impl RbpfConfig {
         }
         self.scan_odometry.icp.validate()?;
         if self.particles == 0 || self.particles > 100_000 {
-            return Err(invalid(
+            return Err(LidarError::invalid_config(
                 "particles",
                 self.particles as f64,
                 "must be in 1..=100000",
@@ -142,20 +143,7 @@ impl RbpfConfig {
             self.update_angular_rad,
             self.resample_threshold,
         );
-        for (field, value, ok) in checks.into_iter().chain(shared) {
-            if !(ok && value.is_finite()) {
-                return Err(invalid(field, value, "out of range"));
-            }
-        }
-        Ok(())
-    }
-}
-
-fn invalid(field: &'static str, value: f64, reason: &'static str) -> LidarError {
-    LidarError::InvalidConfig {
-        field,
-        value: value.to_string(),
-        reason,
+        check_fields(checks.into_iter().chain(shared), "out of range")
     }
 }
 

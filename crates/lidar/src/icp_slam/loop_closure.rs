@@ -9,6 +9,7 @@
 
 use crate::cloud::voxel_downsample;
 use crate::correlative::{correlative_match, CorrelativeConfig};
+use crate::error::check_fields;
 use crate::icp::{align, IcpConfig};
 use crate::point_map::{Keyframe, KeyframeMap};
 use crate::LidarError;
@@ -146,16 +147,7 @@ impl LoopClosureConfig {
             ),
             ("robust_scale", self.robust_scale, self.robust_scale > 0.0),
         ];
-        for (field, value, ok) in checks {
-            if !(ok && value.is_finite()) {
-                return Err(LidarError::InvalidConfig {
-                    field,
-                    value: value.to_string(),
-                    reason: "out of range",
-                });
-            }
-        }
-        Ok(())
+        check_fields(checks, "out of range")
     }
 }
 
