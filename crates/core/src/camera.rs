@@ -40,6 +40,20 @@ pub struct Intrinsics {
 }
 
 impl Intrinsics {
+    /// Intrinsics from `[fx, fy, cx, cy]` \[px\] and the image size \[px\], the order in which
+    /// calibration files list them.
+    pub fn from_array(k: [f64; 4], width: usize, height: usize) -> Self {
+        let [fx, fy, cx, cy] = k;
+        Self {
+            fx,
+            fy,
+            cx,
+            cy,
+            width,
+            height,
+        }
+    }
+
     /// The calibration matrix `K = [fx 0 cx; 0 fy cy; 0 0 1]`.
     pub fn matrix(&self) -> Matrix3<f64> {
         Matrix3::new(self.fx, 0.0, self.cx, 0.0, self.fy, self.cy, 0.0, 0.0, 1.0)
@@ -236,6 +250,12 @@ mod tests {
             },
             Distortion::from_opencv([0.262383, -0.953104, -0.005358, 0.002628, 1.163314]),
         )
+    }
+
+    #[test]
+    fn from_array_reads_fx_fy_cx_cy_in_order() {
+        let k = [517.306408, 516.469215, 318.643040, 255.313989];
+        assert_eq!(Intrinsics::from_array(k, 640, 480), tum_fr1().intrinsics);
     }
 
     /// EuRoC MAV cam0 (radial-tangential model, k3 = 0), from the dataset's `sensor.yaml`.

@@ -268,17 +268,8 @@ pub(crate) fn has_extension(name: &str, exts: &[&str]) -> bool {
 /// A pinhole camera from `[fx, fy, cx, cy]` \[px\], `(width, height)` \[px\] and OpenCV
 /// distortion `[k1, k2, p1, p2, k3]`.
 pub(crate) fn camera(k: [f64; 4], size: (usize, usize), distortion: [f64; 5]) -> PinholeCamera {
-    let [fx, fy, cx, cy] = k;
-    let (width, height) = size;
     PinholeCamera::new(
-        Intrinsics {
-            fx,
-            fy,
-            cx,
-            cy,
-            width,
-            height,
-        },
+        Intrinsics::from_array(k, size.0, size.1),
         Distortion::from_opencv(distortion),
     )
 }

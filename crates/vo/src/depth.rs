@@ -74,15 +74,7 @@ impl DepthRegistration {
 
     /// The colour camera intrinsics, with the size of the depth image.
     pub fn color_camera(&self, width: usize, height: usize) -> Intrinsics {
-        let [fx, fy, cx, cy] = self.color_intrinsics;
-        Intrinsics {
-            fx,
-            fy,
-            cx,
-            cy,
-            width,
-            height,
-        }
+        Intrinsics::from_array(self.color_intrinsics, width, height)
     }
 }
 
