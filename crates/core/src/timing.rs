@@ -35,11 +35,16 @@ impl StageTimings {
             .push(ms);
     }
 
+    /// Records the time from `start` until now for `stage`.
+    pub fn record_since(&mut self, stage: &str, start: Instant) {
+        self.record(stage, start.elapsed().as_secs_f64() * 1e3);
+    }
+
     /// Runs `f`, records its duration under `stage` and returns its result.
     pub fn time<T>(&mut self, stage: &str, f: impl FnOnce() -> T) -> T {
         let start = Instant::now();
         let out = f();
-        self.record(stage, start.elapsed().as_secs_f64() * 1e3);
+        self.record_since(stage, start);
         out
     }
 

@@ -243,7 +243,7 @@ impl IcpSlam {
         let guess = self.predict(scan);
         let start = Instant::now();
         let points = scan_points(scan, self.config.min_range_m, self.config.max_range_m);
-        self.timings.record("preprocess", elapsed_ms(start));
+        self.timings.record_since("preprocess", start);
         if points.len() < self.config.min_scan_points {
             self.stats.scans_skipped += 1;
             self.stats.skipped_broken.add(broken_scans::classify(
@@ -295,7 +295,7 @@ impl IcpSlam {
         let start = Instant::now();
         let first = align(&source, self.map.index(), guess, &self.config.icp);
         let first = first.ok();
-        self.timings.record("icp", elapsed_ms(start));
+        self.timings.record_since("icp", start);
         if let Some(res) = first.filter(|r| r.goodness >= self.config.min_goodness) {
             self.consecutive_failures = 0;
             return (
@@ -307,7 +307,7 @@ impl IcpSlam {
         let second = if self.config.correlative_fallback {
             let start = Instant::now();
             let res = self.correlative_then_icp(&source, guess);
-            self.timings.record("correlative", elapsed_ms(start));
+            self.timings.record_since("correlative", start);
             res
         } else {
             None
@@ -374,7 +374,7 @@ impl IcpSlam {
         self.last_keyframe = Some(*pose);
         self.consecutive_failures = 0;
         self.stats.keyframes += 1;
-        self.timings.record("insert", elapsed_ms(start));
+        self.timings.record_since("insert", start);
         let lc = &self.config.loop_closure;
         if lc.enabled && node % lc.every_keyframes.max(1) == 0 {
             self.close_loops();
@@ -396,7 +396,7 @@ impl IcpSlam {
             self.open_distance_m,
             &self.config.loop_closure,
         );
-        self.timings.record("loop_search", elapsed_ms(start));
+        self.timings.record_since("loop_search", start);
         if closures.is_empty() {
             return;
         }
@@ -429,7 +429,7 @@ impl IcpSlam {
             self.world_from_base = newest * (old_newest.inverse() * self.world_from_base);
             self.last_keyframe = Some(newest);
         }
-        self.timings.record("optimize", elapsed_ms(start));
+        self.timings.record_since("optimize", start);
     }
 
     fn commit(
@@ -495,10 +495,6 @@ impl IcpSlam {
     pub fn timings(&self) -> &StageTimings {
         &self.timings
     }
-}
-
-fn elapsed_ms(start: Instant) -> f64 {
-    start.elapsed().as_secs_f64() * 1e3
 }
 
 /// Everything a full run produces.

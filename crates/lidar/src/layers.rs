@@ -213,8 +213,7 @@ impl LayeredIcpSlam {
                 } else {
                     let start = Instant::now();
                     let (pose, status) = self.match_in_layer(h.layer, input.scan, predicted);
-                    let ms = start.elapsed().as_secs_f64() * 1e3;
-                    self.timings.record("layer_slam", ms);
+                    self.timings.record_since("layer_slam", start);
                     (pose, LayerScanStatus::Slam(status))
                 }
             }

@@ -532,7 +532,7 @@ pub fn run_mcl(
     let mut timings = StageTimings::default();
     let started = Instant::now();
     let (odometry, _, wheel) = odometry_poses(scans, config.use_odometry, &config.scan_odometry);
-    timings.record("odometry", started.elapsed().as_secs_f64() * 1e3);
+    timings.record_since("odometry", started);
     mcl.stats.wheel_odometry = wheel;
     let mut last: Option<(Pose2, Pose2)> = None; // (odometry, estimate) at the last update
     let mut poses = Vec::with_capacity(scans.len());
@@ -557,7 +557,7 @@ pub fn run_mcl(
                 // The particles moved: keep the reference odometry in step with them.
                 last = Some((*odom, pose * increment));
             }
-            timings.record("update", started.elapsed().as_secs_f64() * 1e3);
+            timings.record_since("update", started);
         }
         let pose = last.map_or(Pose2::identity(), |(o, p)| p * (o.inverse() * odom));
         poses.push(pose);

@@ -353,8 +353,7 @@ impl Rbpf {
         self.resample_if_needed();
         self.timings.record("proposal", ms(started, proposed));
         self.timings.record("map_update", ms(proposed, inserted));
-        self.timings
-            .record("resample", ms(inserted, Instant::now()));
+        self.timings.record_since("resample", inserted);
         if self.stats.updates % 50 == 0 {
             let shared = shared_tile_stats(self.particles.iter().map(|p| &p.grid)).bytes;
             self.stats.peak_shared_bytes = self.stats.peak_shared_bytes.max(shared);
@@ -468,9 +467,7 @@ pub fn run_rbpf(
     let started = Instant::now();
     let (odometry, odometry_failures, wheel) =
         odometry_poses(scans, config.use_odometry, &config.scan_odometry);
-    filter
-        .timings
-        .record("odometry", ms(started, Instant::now()));
+    filter.timings.record_since("odometry", started);
     for (i, (scan, odom)) in scans.iter().zip(&odometry).enumerate() {
         filter.process(i, scan, odom);
         on_scan(i);

@@ -346,11 +346,6 @@ pub fn distance_to_polyline(p: &Point2<f64>, path: &[Point2<f64>]) -> Option<f64
         .min_by(f64::total_cmp)
 }
 
-/// Milliseconds since `start`.
-fn ms_since(start: Instant) -> f64 {
-    start.elapsed().as_secs_f64() * 1e3
-}
-
 /// The state of the loop between steps.
 struct LoopState {
     slam: IcpSlam,
@@ -384,12 +379,12 @@ impl LoopState {
     fn localise(&mut self, scan: &LaserScan) -> anyhow::Result<Pose2> {
         let started = Instant::now();
         let estimate = self.world_from_slam * self.slam.process(scan).world_from_base;
-        self.timings.record("slam", ms_since(started));
+        self.timings.record_since("slam", started);
         let started = Instant::now();
         self.grid
             .insert_scan(scan, &(estimate * scan.base_from_laser))
             .context("inserting a scan into the map")?;
-        self.timings.record("map", ms_since(started));
+        self.timings.record_since("map", started);
         Ok(estimate)
     }
 
@@ -402,7 +397,7 @@ impl LoopState {
         let planned = planning_grid(&self.grid, &[*position, *goal], inflate as i32 + 2)
             .ok_or(())
             .and_then(|g| plan_inflated(&g, position, goal, inflate).map_err(|_| ()));
-        self.timings.record("plan", ms_since(started));
+        self.timings.record_since("plan", started);
         match planned {
             Ok(path) => {
                 self.tracker.set_path(&path.waypoints_m);
@@ -499,7 +494,7 @@ pub fn run_nav_loop(
         state.replan(t, &position, &goal, inflate);
         let started = Instant::now();
         let command = state.tracker.step(Some(&pose), dt);
-        state.timings.record("track", ms_since(started));
+        state.timings.record_since("track", started);
         if let Some(d) = distance_to_polyline(&truth_position, state.tracker.path()) {
             scores.max_cross_track_m = scores.max_cross_track_m.max(d);
         }
