@@ -9,18 +9,8 @@
 //! Skipped when `SLAMKIT_DATA` is not set.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers fail loudly
 
-use std::path::PathBuf;
+use slamkit_testdata::data;
 use std::process::Command;
-
-fn data(test: &str) -> Option<PathBuf> {
-    match std::env::var_os("SLAMKIT_DATA") {
-        Some(dir) => Some(PathBuf::from(dir)),
-        None => {
-            eprintln!("skipped: {test}: SLAMKIT_DATA not set");
-            None
-        }
-    }
-}
 
 fn eval_json(args: &[&str]) -> serde_json::Value {
     let out = Command::new(env!("CARGO_BIN_EXE_slamkit"))
@@ -49,10 +39,12 @@ fn assert_near(json: &serde_json::Value, key: &str, expected: f64, tol: f64) {
 
 #[test]
 fn ate_and_rpe_match_evo_on_fr1_xyz() {
-    let Some(data) = data("ate_and_rpe_match_evo_on_fr1_xyz") else {
+    let Some(dir) = data(
+        "ate_and_rpe_match_evo_on_fr1_xyz",
+        "trajectories/evo_test_data",
+    ) else {
         return;
     };
-    let dir = data.join("trajectories/evo_test_data");
     let gt = dir.join("freiburg1_xyz-groundtruth.txt");
     let est = dir.join("freiburg1_xyz-rgbdslam.txt");
     let (gt, est) = (gt.to_str().unwrap(), est.to_str().unwrap());
@@ -84,11 +76,13 @@ fn ate_and_rpe_match_evo_on_fr1_xyz() {
 
 #[test]
 fn kitti_pairs_by_index_like_evo() {
-    let Some(data) = data("kitti_pairs_by_index_like_evo") else {
+    let Some(dir) = data(
+        "kitti_pairs_by_index_like_evo",
+        "trajectories/evo_test_data",
+    ) else {
         return;
     };
     // evo_ape kitti KITTI_00_gt.txt KITTI_00_ORB.txt -a (evo 1.38): RMSE 1.303449715 m
-    let dir = data.join("trajectories/evo_test_data");
     let gt = dir.join("KITTI_00_gt.txt");
     let est = dir.join("KITTI_00_ORB.txt");
     let ate = eval_json(&[
@@ -104,7 +98,7 @@ fn kitti_pairs_by_index_like_evo() {
 
 #[test]
 fn relations_metric_matches_mrpt_reference_values() {
-    let Some(data) = data("relations_metric_matches_mrpt_reference_values") else {
+    let Some(data) = data("relations_metric_matches_mrpt_reference_values", "") else {
         return;
     };
     // (relations, estimate, trans mean, trans std, rot mean, rot std, count) from the README

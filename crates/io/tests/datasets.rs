@@ -4,7 +4,8 @@
 // The fixture helpers below are test code too, outside `#[test]` functions.
 #![allow(clippy::unwrap_used, clippy::panic)]
 
-use std::path::{Path, PathBuf};
+use slamkit_testdata::data;
+use std::path::Path;
 
 use nalgebra::{Quaternion, Translation3, UnitQuaternion, Vector3};
 use slamkit_core::{Pose3, Trajectory};
@@ -13,16 +14,6 @@ use slamkit_io::{kitti, seven_scenes, tum_rgbd, Dataset, DatasetFormat};
 use slamkit_io::{read_trajectory, write_tum, IoError, TrajectoryFormat};
 
 /// `$SLAMKIT_DATA/<rel>`, or `None` (with a skip message) when the variable is unset.
-fn data(test: &str, rel: &str) -> Option<PathBuf> {
-    match std::env::var("SLAMKIT_DATA") {
-        Ok(root) => Some(PathBuf::from(root).join(rel)),
-        Err(_) => {
-            eprintln!("skipped: {test}: SLAMKIT_DATA not set");
-            None
-        }
-    }
-}
-
 /// Checks (translation, quaternion x y z w) of a pose against the values printed in a file.
 fn assert_pose(traj: &Trajectory, index: usize, t: [f64; 3], q_xyzw: [f64; 4], tol: f64) {
     let p = &traj.poses[index].pose;

@@ -9,13 +9,7 @@ use slamkit_io::relations::{read_relations, Relation};
 use std::path::PathBuf;
 
 fn lidar_dir(test: &str) -> Option<PathBuf> {
-    match std::env::var("SLAMKIT_DATA") {
-        Ok(dir) => Some(PathBuf::from(dir).join("lidar2d")),
-        Err(_) => {
-            eprintln!("skipped: {test}: SLAMKIT_DATA not set");
-            None
-        }
-    }
+    slamkit_testdata::data(test, "lidar2d")
 }
 
 fn backward_steps(scans: &[LaserScan]) -> usize {

@@ -1,23 +1,14 @@
 //! Accuracy on the real sequences of `$SLAMKIT_DATA` (skipped when it is not set). The bounds
 //! sit just above what the published defaults measure (BENCHMARKS.md, "Visual odometry").
 
-use std::path::{Path, PathBuf};
+use slamkit_testdata::data;
+use std::path::Path;
 
 use slamkit_io::{Dataset, DatasetFormat};
 use slamkit_vo::depth::DepthRegistration;
 use slamkit_vo::{
     evaluate, run, FrameStatus, FrontendKind, RunOptions, TrackingMode, VoConfig, VoMetrics,
 };
-
-fn data(test: &str, rel: &str) -> Option<PathBuf> {
-    match std::env::var("SLAMKIT_DATA") {
-        Ok(root) => Some(PathBuf::from(root).join(rel)),
-        Err(_) => {
-            eprintln!("skipped: {test}: SLAMKIT_DATA not set");
-            None
-        }
-    }
-}
 
 fn score(
     dir: &Path,

@@ -7,13 +7,7 @@ use std::path::{Path, PathBuf};
 
 /// `$SLAMKIT_DATA/lidar2d`, or `None` (with a skip message naming `test`) when it is unset.
 pub fn data_dir(test: &str) -> Option<PathBuf> {
-    match std::env::var("SLAMKIT_DATA") {
-        Ok(dir) => Some(PathBuf::from(dir).join("lidar2d")),
-        Err(_) => {
-            eprintln!("skipped: {test}: SLAMKIT_DATA not set");
-            None
-        }
-    }
+    slamkit_testdata::data(test, "lidar2d")
 }
 
 /// Mean translational relations error of `trajectory` against `relations` \[m\]; every

@@ -1,0 +1,23 @@
+//! slamkit-testdata: how slamkit's integration tests find the public datasets.
+//!
+//! The real data (lidar logs, KITTI, 7-Scenes, …) is never part of the repository; CI and
+//! developers point `SLAMKIT_DATA` at a copy of it. A test that needs it asks [`data`] and
+//! returns early when it gets `None`, having said on stderr that it was skipped, so that
+//! `cargo test` on a machine without the data passes visibly rather than silently.
+
+use std::path::PathBuf;
+
+/// The environment variable naming the data folder.
+pub const DATA_VAR: &str = "SLAMKIT_DATA";
+
+/// `$SLAMKIT_DATA/<relative>`, or `None` after printing `skipped: <test>: SLAMKIT_DATA not set`
+/// when the variable is unset.
+pub fn data(test: &str, relative: &str) -> Option<PathBuf> {
+    match std::env::var_os(DATA_VAR) {
+        Some(root) => Some(PathBuf::from(root).join(relative)),
+        None => {
+            eprintln!("skipped: {test}: {DATA_VAR} not set");
+            None
+        }
+    }
+}
