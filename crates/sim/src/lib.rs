@@ -7,7 +7,9 @@
 //! * [`motion`]: a drone flying waypoints `x y z yaw` (tilting as it accelerates) and a
 //!   differential-drive robot; ground truth `world_from_base` at any time.
 //! * Sensors with seeded noise: [`lidar`] (planar, tilting with the robot), [`range_finder`]
-//!   (up and down), [`odometry`] (drifting), [`attitude`] (roll and pitch).
+//!   (up and down), [`odometry`] (drifting), [`attitude`] (roll and pitch), [`camera`] (RGB-D:
+//!   colour and Kinect-like depth) and [`stereo`] (a rectified grey pair), both ray-cast per
+//!   pixel: [`Simulation::rgbd_frame`], [`Simulation::stereo_frame`].
 //! * [`relations`]: pairs of scans for benchmark relations files.
 //! * [`simulation`]: a robot, a world and its sensors; [`Simulation::lidar_run`] gives the scans,
 //!   ranges and ground truth of a whole run.
@@ -27,6 +29,7 @@
 //! ```
 
 pub mod attitude;
+pub mod camera;
 pub mod error;
 pub mod lidar;
 pub mod motion;
@@ -35,10 +38,12 @@ pub mod range_finder;
 pub mod relations;
 pub mod scene;
 pub mod simulation;
+pub mod stereo;
 pub mod texture;
 pub mod world;
 
 pub use attitude::{AttitudeConfig, AttitudeReading};
+pub use camera::{CameraMount, RgbdCameraConfig, RgbdFrame, View, TUM_FR1_INTRINSICS};
 pub use error::SimError;
 pub use lidar::Lidar2dConfig;
 pub use motion::{DiffDriveConfig, DroneConfig, RobotState, WaypointMotion};
@@ -47,5 +52,6 @@ pub use range_finder::{RangeFinderConfig, RangeReading};
 pub use relations::relation_pairs;
 pub use scene::{Hit, Scene};
 pub use simulation::{sample_times, LidarRun, RobotKind, SimConfig, Simulation, Stream};
+pub use stereo::{StereoCameraConfig, StereoFrame};
 pub use texture::{Pattern, Texture};
 pub use world::{World, BUILTIN_WORLDS};

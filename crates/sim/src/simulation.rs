@@ -8,11 +8,13 @@
 //! them with 6 decimals (CARMEN, TUM) and parsing them back gives the same numbers.
 
 use crate::attitude::{AttitudeConfig, AttitudeReading};
+use crate::camera::{render_rgbd, RgbdCameraConfig, RgbdFrame};
 use crate::lidar::Lidar2dConfig;
 use crate::motion::{DiffDriveConfig, DroneConfig, RobotState, WaypointMotion};
 use crate::odometry::{OdometryConfig, OdometrySimulator};
 use crate::range_finder::{RangeFinderConfig, RangeReading};
 use crate::scene::Scene;
+use crate::stereo::{render_stereo, StereoCameraConfig, StereoFrame};
 use crate::world::World;
 use crate::SimError;
 use rand::SeedableRng;
@@ -51,6 +53,10 @@ pub struct SimConfig {
     pub range_finder: RangeFinderConfig,
     /// Roll and pitch from the flight controller.
     pub attitude: AttitudeConfig,
+    /// The RGB-D camera.
+    pub rgbd: RgbdCameraConfig,
+    /// The stereo pair.
+    pub stereo: StereoCameraConfig,
 }
 
 impl Default for SimConfig {
@@ -64,6 +70,8 @@ impl Default for SimConfig {
             lidar: Lidar2dConfig::default(),
             range_finder: RangeFinderConfig::default(),
             attitude: AttitudeConfig::default(),
+            rgbd: RgbdCameraConfig::default(),
+            stereo: StereoCameraConfig::default(),
         }
     }
 }
@@ -86,6 +94,8 @@ pub enum Stream {
     Relations = 6,
     /// Roll and pitch noise.
     Attitude = 7,
+    /// Stereo image noise.
+    Stereo = 8,
 }
 
 /// The lidar part of a run: what 2D lidar SLAM needs.
@@ -138,6 +148,8 @@ impl Simulation {
         config.lidar.validate()?;
         config.range_finder.validate()?;
         config.attitude.validate()?;
+        config.rgbd.validate()?;
+        config.stereo.validate()?;
         Ok(Self {
             scene: Scene::new(&world),
             world,
@@ -257,6 +269,53 @@ impl Simulation {
     /// The pose of a sensor mounted at `base_from_sensor`, at time `t`.
     pub fn world_from_sensor(&self, t: f64, base_from_sensor: &Pose3) -> Pose3 {
         self.state_at(t).world_from_base * base_from_sensor
+    }
+
+    /// True `world_from_sensor` at each of `times`, for a sensor mounted at `base_from_sensor`.
+    pub fn sensor_ground_truth(&self, times: &[f64], base_from_sensor: &Pose3) -> Trajectory {
+        let mut traj = Trajectory::new();
+        for &t in times {
+            traj.push(t, self.world_from_sensor(t, base_from_sensor));
+        }
+        traj
+    }
+
+    /// RGB-D frame number `index` taken at `timestamp` \[s\] by the camera of
+    /// [`SimConfig::rgbd`] (usually at [`Self::sample_times`] of its rate). Each frame's noise
+    /// depends only on the seed and `index`, so frames can be rendered in any order.
+    pub fn rgbd_frame(&self, index: usize, timestamp: f64) -> RgbdFrame {
+        let config = &self.config.rgbd;
+        let world_from_camera = self.world_from_sensor(timestamp, &config.mount.base_from_camera());
+        let (color, depth_m) = render_rgbd(
+            &self.scene,
+            config,
+            world_from_camera,
+            &self.rng(Stream::Image, index as u64),
+            &self.rng(Stream::Depth, index as u64),
+        );
+        RgbdFrame {
+            index,
+            timestamp,
+            color,
+            depth_m,
+            world_from_camera,
+        }
+    }
+
+    /// Stereo frame number `index` taken at `timestamp` \[s\] by the pair of
+    /// [`SimConfig::stereo`].
+    pub fn stereo_frame(&self, index: usize, timestamp: f64) -> StereoFrame {
+        let config = &self.config.stereo;
+        let world_from_left = self.world_from_sensor(timestamp, &config.mount.base_from_camera());
+        let rng = self.rng(Stream::Stereo, index as u64);
+        let (left, right) = render_stereo(&self.scene, config, world_from_left, &rng);
+        StereoFrame {
+            index,
+            timestamp,
+            left,
+            right,
+            world_from_left,
+        }
     }
 }
 
