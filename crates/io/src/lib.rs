@@ -8,6 +8,8 @@
 //! * Camera datasets, each giving frames (timestamps + paths, images decoded on demand),
 //!   calibrated cameras and `world_from_camera` ground truth: [`tum_rgbd`], [`kitti`],
 //!   [`seven_scenes`], [`redwood`], [`euroc`]; [`Dataset`] opens any of them by name.
+//! * Writers for simulated data: [`tum_rgbd_writer`], [`kitti_writer`] (images through
+//!   [`image_writer`]), [`carmen_writer`].
 
 pub mod carmen;
 pub mod carmen_writer;
@@ -15,13 +17,16 @@ pub mod dataset;
 pub mod error;
 pub mod euroc;
 pub mod image_io;
+pub mod image_writer;
 pub mod kitti;
+pub mod kitti_writer;
 pub mod mrpt_text;
 pub mod redwood;
 pub mod relations;
 pub mod seven_scenes;
 pub mod trajectory_file;
 pub mod tum_rgbd;
+pub mod tum_rgbd_writer;
 
 pub use dataset::{
     Dataset, DatasetFormat, RgbdFrame, RgbdImages, RgbdSequence, StereoFrame, StereoImages,
