@@ -32,10 +32,11 @@ pub enum MapError {
     },
 }
 
-/// What went wrong while reading or writing a map file.
+/// What went wrong while reading or writing a map file: a grid (PGM, PNG and YAML) or an
+/// octree (OctoMap `.bt`).
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
-pub enum GridIoError {
+pub enum MapFileError {
     /// The file could not be read or written.
     #[error("{path}: {source}")]
     Io {
@@ -77,6 +78,14 @@ pub enum GridIoError {
         path: PathBuf,
         /// The underlying error.
         source: image::ImageError,
+    },
+    /// The OctoMap `.bt` file is malformed or truncated.
+    #[error("{path}: bad OctoMap .bt file: {message}")]
+    Octree {
+        /// The `.bt` file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
     },
     /// The file is valid but uses a feature this reader does not support.
     #[error("{path}: unsupported: {message}")]

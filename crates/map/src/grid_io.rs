@@ -10,7 +10,7 @@
 //! Image row 0 is the top of the map (largest y). The YAML reader is a small `key: value` parser
 //! for the seven keys `map_server` reads; unknown keys are ignored, as `map_server` does.
 
-use crate::error::GridIoError;
+use crate::error::MapFileError;
 use crate::occupancy_grid::{CellBounds, CellIndex, Occupancy, OccupancyGrid, OccupancyGridConfig};
 use nalgebra::Point2;
 use std::path::{Path, PathBuf};
@@ -98,7 +98,7 @@ pub fn trinary_image(grid: &OccupancyGrid) -> TrinaryImage {
 
 /// Writes `grid` as `map_server` YAML at `yaml_path` plus a PGM image beside it with the same
 /// stem (`map.yaml` → `map.pgm`).
-pub fn save_map_yaml(grid: &OccupancyGrid, yaml_path: &Path) -> Result<(), GridIoError> {
+pub fn save_map_yaml(grid: &OccupancyGrid, yaml_path: &Path) -> Result<(), MapFileError> {
     let pgm_path = yaml_path.with_extension("pgm");
     let image = trinary_image(grid);
     write_file(&pgm_path, &pgm_bytes(&image))?;
@@ -114,9 +114,9 @@ pub fn save_map_yaml(grid: &OccupancyGrid, yaml_path: &Path) -> Result<(), GridI
 }
 
 /// Writes `grid` as a trinary PNG image.
-pub fn save_png(grid: &OccupancyGrid, png_path: &Path) -> Result<(), GridIoError> {
+pub fn save_png(grid: &OccupancyGrid, png_path: &Path) -> Result<(), MapFileError> {
     let image = trinary_image(grid);
-    let img_err = |source| GridIoError::Image {
+    let img_err = |source| MapFileError::Image {
         path: png_path.to_path_buf(),
         source,
     };
@@ -143,8 +143,8 @@ fn pgm_bytes(image: &TrinaryImage) -> Vec<u8> {
     bytes
 }
 
-fn write_file(path: &Path, bytes: &[u8]) -> Result<(), GridIoError> {
-    std::fs::write(path, bytes).map_err(|source| GridIoError::Io {
+fn write_file(path: &Path, bytes: &[u8]) -> Result<(), MapFileError> {
+    std::fs::write(path, bytes).map_err(|source| MapFileError::Io {
         path: path.to_path_buf(),
         source,
     })
@@ -152,14 +152,14 @@ fn write_file(path: &Path, bytes: &[u8]) -> Result<(), GridIoError> {
 
 /// Reads a `map_server` YAML file and the image it names (PGM, or PNG through the `image`
 /// crate) into a grid whose cells are clamped occupied, clamped free or unknown.
-pub fn load_map_yaml(yaml_path: &Path) -> Result<OccupancyGrid, GridIoError> {
-    let text = std::fs::read_to_string(yaml_path).map_err(|source| GridIoError::Io {
+pub fn load_map_yaml(yaml_path: &Path) -> Result<OccupancyGrid, MapFileError> {
+    let text = std::fs::read_to_string(yaml_path).map_err(|source| MapFileError::Io {
         path: yaml_path.to_path_buf(),
         source,
     })?;
     let meta = parse_map_yaml(&text, yaml_path)?;
     if meta.origin[2] != 0.0 {
-        return Err(GridIoError::Unsupported {
+        return Err(MapFileError::Unsupported {
             path: yaml_path.to_path_buf(),
             message: format!("rotated map origin (yaw {} rad)", meta.origin[2]),
         });
@@ -175,7 +175,7 @@ pub fn load_map_yaml(yaml_path: &Path) -> Result<OccupancyGrid, GridIoError> {
     };
     let origin = Point2::new(meta.origin[0], meta.origin[1]);
     let mut grid =
-        OccupancyGrid::with_origin(config, origin).map_err(|source| GridIoError::Map {
+        OccupancyGrid::with_origin(config, origin).map_err(|source| MapFileError::Map {
             path: yaml_path.to_path_buf(),
             source,
         })?;
@@ -200,7 +200,7 @@ pub fn load_map_yaml(yaml_path: &Path) -> Result<OccupancyGrid, GridIoError> {
 }
 
 /// Parses the text of a `map_server` YAML file; `path` names it in errors.
-pub fn parse_map_yaml(text: &str, path: &Path) -> Result<MapYaml, GridIoError> {
+pub fn parse_map_yaml(text: &str, path: &Path) -> Result<MapYaml, MapFileError> {
     let mut fields: [Option<(usize, &str)>; 6] = [None; 6];
     const KEYS: [&str; 6] = [
         "image",
@@ -210,7 +210,7 @@ pub fn parse_map_yaml(text: &str, path: &Path) -> Result<MapYaml, GridIoError> {
         "occupied_thresh",
         "free_thresh",
     ];
-    let bad = |line: usize, message: String| GridIoError::Yaml {
+    let bad = |line: usize, message: String| MapFileError::Yaml {
         path: path.to_path_buf(),
         line,
         message,
@@ -232,12 +232,12 @@ pub fn parse_map_yaml(text: &str, path: &Path) -> Result<MapYaml, GridIoError> {
         fields[slot] = Some((n + 1, value.trim().trim_matches(|c| c == '"' || c == '\'')));
     }
     let get = |slot: usize| {
-        fields[slot].ok_or(GridIoError::MissingKey {
+        fields[slot].ok_or(MapFileError::MissingKey {
             path: path.to_path_buf(),
             key: KEYS[slot],
         })
     };
-    let number = |slot: usize| -> Result<f64, GridIoError> {
+    let number = |slot: usize| -> Result<f64, MapFileError> {
         let (line, value) = get(slot)?;
         parse_finite(value).ok_or_else(|| bad(line, format!("`{}` is not a number", KEYS[slot])))
     };
@@ -296,21 +296,21 @@ fn parse_origin(value: &str) -> Option<[f64; 3]> {
 }
 
 /// Reads an 8-bit grey image: PGM by our own parser, anything else through the `image` crate.
-fn read_gray_image(path: &Path) -> Result<(usize, usize, Vec<u8>), GridIoError> {
+fn read_gray_image(path: &Path) -> Result<(usize, usize, Vec<u8>), MapFileError> {
     let is_pgm = path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("pgm"));
     if is_pgm {
-        let bytes = std::fs::read(path).map_err(|source| GridIoError::Io {
+        let bytes = std::fs::read(path).map_err(|source| MapFileError::Io {
             path: path.to_path_buf(),
             source,
         })?;
-        return parse_pgm(&bytes).map_err(|message| GridIoError::Pgm {
+        return parse_pgm(&bytes).map_err(|message| MapFileError::Pgm {
             path: path.to_path_buf(),
             message,
         });
     }
-    let image = image::open(path).map_err(|source| GridIoError::Image {
+    let image = image::open(path).map_err(|source| MapFileError::Image {
         path: path.to_path_buf(),
         source,
     })?;

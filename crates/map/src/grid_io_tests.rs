@@ -106,7 +106,7 @@ fn hand_written_ros_yaml_with_negate() {
     assert_eq!(at(-0.25, 2.25), Some(Occupancy::Occupied));
 }
 
-fn yaml_error(text: &str) -> GridIoError {
+fn yaml_error(text: &str) -> MapFileError {
     parse_map_yaml(text, Path::new("bad.yaml")).unwrap_err()
 }
 
@@ -120,7 +120,7 @@ fn corrupt_yaml_gives_clear_errors() {
     assert!(
         matches!(
             e,
-            GridIoError::MissingKey {
+            MapFileError::MissingKey {
                 key: "resolution",
                 ..
             }
@@ -128,22 +128,22 @@ fn corrupt_yaml_gives_clear_errors() {
         "{e}"
     );
     let e = yaml_error(&GOOD.replace("[0, 0, 0]", "[0, 0]"));
-    assert!(matches!(e, GridIoError::Yaml { line: 3, .. }), "{e}");
+    assert!(matches!(e, MapFileError::Yaml { line: 3, .. }), "{e}");
     assert!(e.to_string().starts_with("bad.yaml:3: origin"), "{e}");
     let e = yaml_error(&GOOD.replace("0.05", "fast"));
-    assert!(matches!(e, GridIoError::Yaml { line: 2, .. }), "{e}");
+    assert!(matches!(e, MapFileError::Yaml { line: 2, .. }), "{e}");
     let e = yaml_error(&GOOD.replace("0.05", "-0.05"));
-    assert!(matches!(e, GridIoError::Yaml { line: 2, .. }), "{e}");
+    assert!(matches!(e, MapFileError::Yaml { line: 2, .. }), "{e}");
     let e = yaml_error(&GOOD.replace("negate: 0", "negate: yes"));
-    assert!(matches!(e, GridIoError::Yaml { line: 4, .. }), "{e}");
+    assert!(matches!(e, MapFileError::Yaml { line: 4, .. }), "{e}");
     let e = yaml_error(&GOOD.replace("free_thresh: 0.196", "free_thresh: 0.9"));
-    assert!(matches!(e, GridIoError::Yaml { line: 6, .. }), "{e}");
+    assert!(matches!(e, MapFileError::Yaml { line: 6, .. }), "{e}");
     let e = yaml_error(&format!("{GOOD}just garbage\n"));
-    assert!(matches!(e, GridIoError::Yaml { line: 7, .. }), "{e}");
+    assert!(matches!(e, MapFileError::Yaml { line: 7, .. }), "{e}");
     let e = yaml_error(&format!("{GOOD}resolution: 0.1\n"));
     assert!(e.to_string().contains("duplicate key `resolution`"), "{e}");
     let e = yaml_error(&GOOD.replace("origin: [0, 0, 0]", "origin: [NaN, 0, 0]"));
-    assert!(matches!(e, GridIoError::Yaml { line: 3, .. }), "{e}");
+    assert!(matches!(e, MapFileError::Yaml { line: 3, .. }), "{e}");
 }
 
 #[test]
@@ -167,7 +167,7 @@ fn corrupt_pgm_gives_clear_errors() {
     let yaml_path = dir.path().join("m.yaml");
     std::fs::write(&yaml_path, GOOD).unwrap();
     let e = load_map_yaml(&yaml_path).unwrap_err();
-    assert!(matches!(e, GridIoError::Pgm { .. }), "{e}");
+    assert!(matches!(e, MapFileError::Pgm { .. }), "{e}");
     assert!(
         e.to_string().contains("m.pgm") && e.to_string().contains("truncated"),
         "{e}"
@@ -175,7 +175,7 @@ fn corrupt_pgm_gives_clear_errors() {
     std::fs::remove_file(dir.path().join("m.pgm")).unwrap();
     assert!(matches!(
         load_map_yaml(&yaml_path),
-        Err(GridIoError::Io { .. })
+        Err(MapFileError::Io { .. })
     ));
     let e = load_map_yaml(&dir.path().join("absent.yaml")).unwrap_err();
     assert!(e.to_string().contains("absent.yaml"), "{e}");
@@ -188,7 +188,7 @@ fn rotated_origin_is_unsupported() {
     std::fs::write(&yaml_path, GOOD.replace("[0, 0, 0]", "[0, 0, 0.5]")).unwrap();
     assert!(matches!(
         load_map_yaml(&yaml_path),
-        Err(GridIoError::Unsupported { .. })
+        Err(MapFileError::Unsupported { .. })
     ));
 }
 

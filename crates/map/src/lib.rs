@@ -29,7 +29,7 @@ pub mod tri_grid;
 #[cfg(test)]
 mod test_room;
 
-pub use error::{GridIoError, MapError};
+pub use error::{MapError, MapFileError};
 pub use grid_io::{load_map_yaml, save_map_yaml, save_png, MapYaml};
 pub use likelihood_field::{LikelihoodField, LikelihoodFieldConfig};
 pub use occupancy_grid::{

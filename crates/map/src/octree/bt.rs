@@ -11,41 +11,11 @@
 
 use super::nodes::{NO_CHILDREN, ROOT};
 use super::{Octree, OctreeConfig};
-use crate::error::MapError;
-use std::path::{Path, PathBuf};
+use crate::error::MapFileError;
+use std::path::Path;
 
 /// First line of every `.bt` file.
 const HEADER: &str = "# Octomap OcTree binary file";
-
-/// What went wrong while reading or writing a `.bt` file.
-#[derive(Debug, thiserror::Error)]
-#[non_exhaustive]
-pub enum OctreeIoError {
-    /// The file could not be read or written.
-    #[error("{path}: {source}")]
-    Io {
-        /// The file.
-        path: PathBuf,
-        /// The underlying error.
-        source: std::io::Error,
-    },
-    /// The file is not a valid `.bt` file.
-    #[error("{path}: {message}")]
-    Format {
-        /// The file.
-        path: PathBuf,
-        /// What is wrong.
-        message: String,
-    },
-    /// The resolution in the file cannot make an octree.
-    #[error("{path}: {source}")]
-    Map {
-        /// The file.
-        path: PathBuf,
-        /// The underlying error.
-        source: MapError,
-    },
-}
 
 /// The `.bt` bytes of `tree` (its maximum-likelihood, pruned form).
 pub fn bt_bytes(tree: &Octree) -> Vec<u8> {
@@ -64,8 +34,8 @@ pub fn bt_bytes(tree: &Octree) -> Vec<u8> {
 }
 
 /// Writes `tree` to `path` in `.bt` format.
-pub fn write_bt(tree: &Octree, path: &Path) -> Result<(), OctreeIoError> {
-    std::fs::write(path, bt_bytes(tree)).map_err(|source| OctreeIoError::Io {
+pub fn write_bt(tree: &Octree, path: &Path) -> Result<(), MapFileError> {
+    std::fs::write(path, bt_bytes(tree)).map_err(|source| MapFileError::Io {
         path: path.to_path_buf(),
         source,
     })
@@ -98,8 +68,8 @@ fn write_node(tree: &Octree, node: u32, out: &mut Vec<u8>) {
 }
 
 /// Reads a `.bt` file into an octree with `config`'s sensor model and the file's resolution.
-pub fn read_bt(path: &Path, config: &OctreeConfig) -> Result<Octree, OctreeIoError> {
-    let bytes = std::fs::read(path).map_err(|source| OctreeIoError::Io {
+pub fn read_bt(path: &Path, config: &OctreeConfig) -> Result<Octree, MapFileError> {
+    let bytes = std::fs::read(path).map_err(|source| MapFileError::Io {
         path: path.to_path_buf(),
         source,
     })?;
@@ -107,8 +77,8 @@ pub fn read_bt(path: &Path, config: &OctreeConfig) -> Result<Octree, OctreeIoErr
 }
 
 /// Parses `.bt` bytes; `path` only names the source in errors.
-pub fn parse_bt(bytes: &[u8], path: &Path, config: &OctreeConfig) -> Result<Octree, OctreeIoError> {
-    let format = |message: String| OctreeIoError::Format {
+pub fn parse_bt(bytes: &[u8], path: &Path, config: &OctreeConfig) -> Result<Octree, MapFileError> {
+    let format = |message: String| MapFileError::Octree {
         path: path.to_path_buf(),
         message,
     };
@@ -117,7 +87,7 @@ pub fn parse_bt(bytes: &[u8], path: &Path, config: &OctreeConfig) -> Result<Octr
         resolution_m,
         ..config.clone()
     };
-    let mut tree = Octree::new(config).map_err(|source| OctreeIoError::Map {
+    let mut tree = Octree::new(config).map_err(|source| MapFileError::Map {
         path: path.to_path_buf(),
         source,
     })?;
