@@ -23,6 +23,7 @@
 //! the prediction.
 
 pub mod height;
+pub mod velocity;
 
 use crate::cloud::scan_points;
 use crate::icp::align;
@@ -34,6 +35,7 @@ use serde::{Deserialize, Serialize};
 use slamkit_core::{LaserScan, Pose2, Pose3, StageTimings};
 use std::collections::BTreeMap;
 use std::time::Instant;
+use velocity::VelocityTracker;
 
 /// Parameters of layered ICP-SLAM.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -45,6 +47,12 @@ pub struct LayeredSlamConfig {
     pub max_tilt_rad: f64,
     /// Align the first scan of a new layer to the map of the previous layer.
     pub align_new_layer: bool,
+    /// Predict each scan's pose from the scans' odometry; when false (or a scan has none) from
+    /// the velocity of the recent matched poses ([`velocity`]), which is the better prior for
+    /// the simulated drone's noisy optical-flow odometry.
+    pub use_odometry: bool,
+    /// The constant-velocity prior averages the motion over this long \[s\].
+    pub velocity_window_s: f64,
     /// The ICP-SLAM run in every layer (by default keeping every keyframe, so that a layer's
     /// whole map is there when the drone returns).
     pub slam: IcpSlamConfig,
@@ -56,6 +64,8 @@ impl Default for LayeredSlamConfig {
             height: HeightConfig::default(),
             max_tilt_rad: 0.5f64.to_radians(),
             align_new_layer: true,
+            use_odometry: false,
+            velocity_window_s: 1.0,
             slam: IcpSlamConfig {
                 map_keyframes: 0,
                 ..IcpSlamConfig::default()
@@ -69,9 +79,17 @@ impl LayeredSlamConfig {
     pub fn validate(&self) -> Result<(), LidarError> {
         self.slam.validate()?;
         let tilt = ("max_tilt_rad", self.max_tilt_rad);
-        let bad = self.height.invalid_field().or_else(|| {
-            (!(self.max_tilt_rad.is_finite() && self.max_tilt_rad >= 0.0)).then_some(tilt)
-        });
+        let window = ("velocity_window_s", self.velocity_window_s);
+        let bad = self
+            .height
+            .invalid_field()
+            .or_else(|| {
+                (!(self.max_tilt_rad.is_finite() && self.max_tilt_rad >= 0.0)).then_some(tilt)
+            })
+            .or_else(|| {
+                (!(self.velocity_window_s.is_finite() && self.velocity_window_s > 0.0))
+                    .then_some(window)
+            });
         match bad {
             Some((field, value)) => Err(LidarError::InvalidConfig {
                 field,
@@ -166,7 +184,10 @@ pub struct LayeredIcpSlam {
     layers: BTreeMap<i64, Layer>,
     current: Option<i64>,
     world_from_base: Pose2,
+    /// Time of `world_from_base` \[s\].
+    last_time_s: Option<f64>,
     last_odometry: Option<Pose2>,
+    velocity: VelocityTracker,
     stats: LayeredStats,
     timings: StageTimings,
 }
@@ -178,13 +199,15 @@ impl LayeredIcpSlam {
         config.validate()?;
         Ok(Self {
             height: HeightTracker::new(config.height.clone()),
-            config,
             layers: BTreeMap::new(),
             current: None,
             world_from_base: Pose2::identity(),
+            last_time_s: None,
             last_odometry: None,
+            velocity: VelocityTracker::new(config.velocity_window_s),
             stats: LayeredStats::default(),
             timings: StageTimings::default(),
+            config,
         })
     }
 
@@ -218,7 +241,16 @@ impl LayeredIcpSlam {
                 }
             }
         };
+        if matches!(
+            status,
+            LayerScanStatus::Slam(
+                ScanStatus::Matched | ScanStatus::MatchedCorrelative | ScanStatus::Initialised
+            )
+        ) {
+            self.velocity.observe(input.scan.timestamp, pose);
+        }
         self.world_from_base = pose;
+        self.last_time_s = Some(input.scan.timestamp);
         let z = height.map_or(0.0, |h| h.height_m);
         let yaw = pose.rotation.angle();
         LayeredEstimate {
@@ -231,16 +263,20 @@ impl LayeredIcpSlam {
         }
     }
 
-    /// The last pose moved by the odometry increment (standing still without odometry).
+    /// The last pose moved by the odometry increment, or by the recent velocity.
     fn predict(&mut self, scan: &LaserScan) -> Pose2 {
-        let motion = match (self.last_odometry, scan.odometry) {
-            (Some(prev), Some(cur)) => prev.inverse() * cur,
-            _ => Pose2::identity(),
+        let odometry = scan.odometry.filter(|_| self.config.use_odometry);
+        let predicted = match (self.last_odometry, odometry) {
+            (Some(prev), Some(cur)) => self.world_from_base * (prev.inverse() * cur),
+            _ => {
+                let dt = self.last_time_s.map_or(0.0, |t| scan.timestamp - t);
+                self.velocity.predict(&self.world_from_base, dt)
+            }
         };
-        if scan.odometry.is_some() {
-            self.last_odometry = scan.odometry;
+        if odometry.is_some() {
+            self.last_odometry = odometry;
         }
-        renormalised(self.world_from_base * motion)
+        renormalised(predicted)
     }
 
     /// Runs the scan through the map of `layer` from the global `predicted` pose.
