@@ -141,11 +141,24 @@ impl Scene {
     /// `direction` must be a unit vector. Rays leaving the room are stopped by its walls, floor
     /// or ceiling, so a ray from inside the room hits something unless `max_m` is short.
     pub fn cast(&self, origin: &Point3<f64>, direction: &Vector3<f64>, max_m: f64) -> Option<Hit> {
+        self.cast_among(origin, direction, max_m, 0..self.solids.len())
+    }
+
+    /// [`Scene::cast`] testing only the obstacles numbered `candidates` (and the room), for
+    /// callers that have culled the others, such as a camera that knows which obstacles can be
+    /// in a pixel's view ([`Scene::obstacle_bounds`]).
+    pub fn cast_among(
+        &self,
+        origin: &Point3<f64>,
+        direction: &Vector3<f64>,
+        max_m: f64,
+        candidates: impl IntoIterator<Item = usize>,
+    ) -> Option<Hit> {
         let o = origin.coords;
         let inv = direction.map(|d| 1.0 / d);
         let mut best: Option<(f64, Vector3<f64>, usize)> = room_exit(&self.room, &o, direction);
         let mut limit = best.map_or(max_m, |(t, _, _)| t.min(max_m));
-        for solid in &self.solids {
+        for solid in candidates.into_iter().filter_map(|i| self.solids.get(i)) {
             if !slab_overlaps(&solid.bounds, &o, &inv, limit) {
                 continue;
             }
@@ -171,6 +184,14 @@ impl Scene {
             normal,
             surface,
         })
+    }
+
+    /// The axis-aligned bounding box `(min, max)` of every obstacle, in the numbering of
+    /// [`Scene::cast_among`] \[m\].
+    pub fn obstacle_bounds(&self) -> impl Iterator<Item = (Point3<f64>, Point3<f64>)> + '_ {
+        self.solids
+            .iter()
+            .map(|s| (Point3::from(s.bounds.min), Point3::from(s.bounds.max)))
     }
 
     /// True when a sphere of `radius_m` around `p` leaves the room or touches an obstacle
