@@ -1,21 +1,41 @@
 //! `slamkit sim` end to end: the same seed writes the same files byte for byte, another seed
 //! other noise, and the dataset readers give back exactly what the simulator produced (issue
-//! #5: "the readers round-trip what `sim` writes"). Needs no data set.
+//! #5: "the readers round-trip what `sim` writes"): CARMEN and relations for the lidar, TUM
+//! RGB-D for the RGB-D camera, KITTI odometry for the stereo pair. Needs no data set.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers fail loudly
 
 use slamkit_core::pose::{pose2_to_pose3, pose3_to_pose2};
 use slamkit_io::carmen::read_carmen;
 use slamkit_io::read_trajectory;
 use slamkit_io::relations::read_relations;
-use slamkit_sim::{SimConfig, Simulation, World};
-use std::path::Path;
+use slamkit_io::{Dataset, DatasetFormat};
+use slamkit_sim::{RobotKind, SimConfig, Simulation, World};
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 const WORLD: &str = "small";
 
 fn sim(seed: u64, out: &Path) {
+    sim_with(seed, out, &["--world", WORLD, "--sensors", "lidar2d,range"]);
+}
+
+/// Camera runs: half a second of the ground robot in the office.
+const CAMERA_ARGS: [&str; 8] = [
+    "--sensors",
+    "rgbd,stereo",
+    "--world",
+    "office",
+    "--robot",
+    "diff-drive",
+    "--duration",
+    "0.5",
+];
+
+/// Runs `slamkit sim` with `args` (which name the world and sensors) and a seed into `out`.
+fn sim_with(seed: u64, out: &Path, extra: &[&str]) {
     let run = Command::new(env!("CARGO_BIN_EXE_slamkit"))
-        .args(["sim", "--world", WORLD, "--sensors", "lidar2d,range"])
+        .arg("sim")
+        .args(extra)
         .args(["--seed", &seed.to_string(), "--out"])
         .arg(out)
         .output()
@@ -126,12 +146,140 @@ fn readers_give_back_what_the_simulator_produced() {
     }
 }
 
+/// Every file under `dir`, relative to it, sorted.
+fn files_under(dir: &Path) -> Vec<PathBuf> {
+    let mut files = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for entry in std::fs::read_dir(&d).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                stack.push(path);
+            } else {
+                files.push(path.strip_prefix(dir).unwrap().to_path_buf());
+            }
+        }
+    }
+    files.sort();
+    files
+}
+
 #[test]
-fn unknown_and_unsimulated_sensors_are_clear_errors() {
+fn camera_folders_same_seed_same_bytes_other_seed_other_noise() {
     let dir = tempfile::tempdir().unwrap();
-    for (sensor, message) in [("sonar", "unknown sensor"), ("rgbd", "not simulated yet")] {
+    let runs: Vec<PathBuf> = ["a", "b", "c"].iter().map(|n| dir.path().join(n)).collect();
+    for (run, seed) in runs.iter().zip([4, 4, 5]) {
+        sim_with(seed, run, &CAMERA_ARGS);
+    }
+    let files: Vec<PathBuf> = files_under(&runs[0])
+        .into_iter()
+        .filter(|f| f.as_os_str() != "report.json")
+        .collect();
+    // 16 frames at 30 Hz (2 images each), 6 pairs at 10 Hz, and the list and calibration files
+    assert_eq!(files.len(), 32 + 4 + 12 + 3 + 2, "{files:?}");
+    assert_eq!(
+        files,
+        files_under(&runs[1])
+            .into_iter()
+            .filter(|f| f.as_os_str() != "report.json")
+            .collect::<Vec<_>>()
+    );
+    for file in &files {
+        let bytes = std::fs::read(runs[0].join(file)).unwrap();
+        assert!(
+            bytes == std::fs::read(runs[1].join(file)).unwrap(),
+            "{file:?} differs"
+        );
+    }
+    for file in [
+        "tum_rgbd_fr1/rgb/0.000000.png",
+        "tum_rgbd_fr1/depth/0.000000.png",
+        "kitti_stereo/image_1/000000.png",
+    ] {
+        let (x, y) = (
+            std::fs::read(runs[0].join(file)),
+            std::fs::read(runs[2].join(file)),
+        );
+        assert!(
+            x.unwrap() != y.unwrap(),
+            "{file} does not depend on the seed"
+        );
+    }
+}
+
+#[test]
+fn camera_readers_give_back_what_the_simulator_produced() {
+    let dir = tempfile::tempdir().unwrap();
+    let seed = 9;
+    sim_with(seed, dir.path(), &CAMERA_ARGS);
+    let config = SimConfig {
+        robot: RobotKind::DiffDrive,
+        ..SimConfig::default()
+    };
+    let simulation =
+        Simulation::new(World::builtin("office").unwrap(), config.clone(), seed).unwrap();
+
+    // TUM RGB-D: the folder name selects the Freiburg 1 intrinsics the camera was rendered with
+    let Dataset::Rgbd(tum) =
+        Dataset::open(&dir.path().join("tum_rgbd_fr1"), DatasetFormat::Tum).unwrap()
+    else {
+        panic!("not RGB-D");
+    };
+    assert_eq!(tum.color_camera.intrinsics, config.rgbd.intrinsics);
+    let times = slamkit_sim::sample_times(0.5, config.rgbd.rate_hz);
+    assert_eq!(tum.frames.len(), times.len());
+    let truth = tum.ground_truth.as_ref().unwrap();
+    for (i, frame) in tum.frames.iter().enumerate() {
+        let made = simulation.rgbd_frame(i, times[i]);
+        assert_eq!(frame.timestamp, made.timestamp);
+        let read = tum.load(frame).unwrap();
+        assert!(
+            read.color == made.color && read.depth_m == made.depth_m,
+            "frame {i}"
+        );
+        let pose = truth.poses[i].pose;
+        assert_eq!(truth.poses[i].timestamp, made.timestamp);
+        let diff = made.world_from_camera.inverse() * pose;
+        assert!(diff.translation.vector.norm() < 1e-9 && diff.rotation.angle() < 1e-9);
+    }
+
+    // KITTI: images, times, calibration, poses relative to the first left camera
+    let Dataset::Stereo(kitti) =
+        Dataset::open(&dir.path().join("kitti_stereo"), DatasetFormat::Kitti).unwrap()
+    else {
+        panic!("not stereo");
+    };
+    assert_eq!(kitti.left_camera.intrinsics, config.stereo.intrinsics);
+    assert!((kitti.baseline_m() - config.stereo.baseline_m).abs() < 1e-15);
+    let times = slamkit_sim::sample_times(0.5, config.stereo.rate_hz);
+    assert_eq!(kitti.frames.len(), times.len());
+    let poses = kitti.ground_truth.as_ref().unwrap();
+    let first = simulation.stereo_frame(0, 0.0).world_from_left.inverse();
+    for (i, frame) in kitti.frames.iter().enumerate() {
+        let made = simulation.stereo_frame(i, times[i]);
+        assert_eq!(frame.timestamp, made.timestamp);
+        let read = kitti.load(frame).unwrap();
+        assert!(
+            read.left == made.left && read.right == made.right,
+            "pair {i}"
+        );
+        let diff = (first * made.world_from_left).inverse() * poses.poses[i].pose;
+        assert!(diff.translation.vector.norm() < 1e-9 && diff.rotation.angle() < 1e-9);
+    }
+}
+
+#[test]
+fn unknown_sensors_and_bad_durations_are_clear_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    for (args, message) in [
+        (vec!["--sensors", "sonar"], "unknown sensor"),
+        (vec!["--duration=-1"], "--duration"),
+        (vec!["--duration=nan"], "--duration"),
+    ] {
         let run = Command::new(env!("CARGO_BIN_EXE_slamkit"))
-            .args(["sim", "--world", WORLD, "--sensors", sensor, "--out"])
+            .args(["sim", "--world", WORLD])
+            .args(args)
+            .arg("--out")
             .arg(dir.path())
             .output()
             .unwrap();

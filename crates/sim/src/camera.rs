@@ -365,9 +365,8 @@ fn span(values: impl Iterator<Item = f64>) -> [f64; 2] {
 /// An 8-bit level with Gaussian noise: `value` in `\[0, 1\]` scaled to 0–255.
 pub(crate) fn noisy_level(value: f32, sigma: f64, rng: &mut ChaCha8Rng) -> u8 {
     let noise: f64 = rng.sample(StandardNormal);
-    (f64::from(value) * 255.0 + sigma * noise)
-        .round()
-        .clamp(0.0, 255.0) as u8
+    // rounds: + 0.5, then the cast truncates the (non-negative) value
+    (f64::from(value) * 255.0 + sigma * noise + 0.5).clamp(0.0, 255.0) as u8
 }
 
 /// Renders the RGB-D frame of a camera at `world_from_camera`: colour noise from `image_rng`,

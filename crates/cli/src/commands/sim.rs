@@ -6,19 +6,27 @@
 //! * `lidar2d`: `lidar.clf` (CARMEN log, ROBOTLASER1 lines with the drifting odometry) and
 //!   `lidar.relations` (Freiburg benchmark relations: scans 1 s apart and random far pairs, in
 //!   the plane: z, roll and pitch 0);
-//! * `range`: `ranges.csv` (`timestamp,up_m,down_m`, empty when nothing is in range).
+//! * `range`: `ranges.csv` (`timestamp,up_m,down_m`, empty when nothing is in range);
+//! * `rgbd`: a TUM RGB-D folder `tum_rgbd_fr1/` (30 Hz, 640×480, Freiburg 1 intrinsics, depth
+//!   at 5000 units per metre, `groundtruth.txt` of the camera), see [`cameras`];
+//! * `stereo`: a KITTI odometry folder `kitti_stereo/` (10 Hz rectified grey pair, 0.12 m
+//!   baseline, `poses.txt` of the left camera).
 //!
-//! The same world, sensors and seed give the same files byte for byte.
+//! `--duration` cuts the run short (camera folders hold 30 frames a second of run, about
+//! 1.5 MB a frame). The same world, sensors, robot, duration and seed give the same files byte
+//! for byte.
 
-use crate::output::{peak_rss_bytes, prepare_out_dir, write_report};
+pub mod cameras;
+
+use crate::output::{peak_rss_bytes, prepare_out_dir, timings_json, write_report};
 use anyhow::Context;
 use serde_json::json;
 use slamkit_core::pose::{pose2_to_pose3, pose3_to_pose2};
-use slamkit_core::Trajectory;
+use slamkit_core::{StageTimings, Trajectory};
 use slamkit_io::carmen_writer::{write_carmen, write_relations};
 use slamkit_io::relations::Relation;
 use slamkit_io::write_tum;
-use slamkit_sim::{relation_pairs, SimConfig, Simulation, Stream, World};
+use slamkit_sim::{relation_pairs, RobotKind, SimConfig, Simulation, Stream, World};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -29,10 +37,21 @@ pub struct SimArgs {
     /// World: `small`, `large`, `office`, or a TOML world file.
     #[arg(long)]
     pub world: String,
-    /// Sensors to simulate, comma separated: lidar2d, range (the cameras, rgbd and stereo, are
-    /// not simulated yet).
+    /// Sensors to simulate, comma separated: lidar2d (or lidar), range, rgbd, stereo.
     #[arg(long, value_delimiter = ',', default_value = "lidar2d")]
     pub sensors: Vec<String>,
+    /// The robot: the drone flies the world's flight path, the ground robot drives its drive
+    /// path.
+    #[arg(long, value_enum, default_value = "drone")]
+    pub robot: Robot,
+    /// Simulate only the first this many seconds of the run \[s\].
+    #[arg(long)]
+    pub duration: Option<f64>,
+    /// TOML file with simulation settings (fields of slamkit_sim::SimConfig, such as
+    /// `[rgbd] rate_hz = 15` or `[diff_drive] speed_mps = 0.25`); `--robot` wins over its
+    /// `robot`.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
     /// Seed of every random choice.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -41,23 +60,35 @@ pub struct SimArgs {
     pub out: PathBuf,
 }
 
+/// The simulated robots.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Robot {
+    /// A drone flying the world's flight path.
+    Drone,
+    /// A differential-drive ground robot driving the world's drive path.
+    DiffDrive,
+}
+
 /// The sensors `slamkit sim` can write.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Sensor {
     Lidar2d,
     Range,
+    Rgbd,
+    Stereo,
 }
+
+const SENSOR_NAMES: &str = "lidar2d, range, rgbd, stereo";
 
 fn parse_sensors(names: &[String]) -> anyhow::Result<Vec<Sensor>> {
     let mut sensors = Vec::new();
     for name in names {
         let sensor = match name.trim() {
-            "lidar2d" => Sensor::Lidar2d,
+            "lidar2d" | "lidar" => Sensor::Lidar2d,
             "range" => Sensor::Range,
-            "rgbd" | "stereo" => {
-                anyhow::bail!("sensor {name:?} is not simulated yet (available: lidar2d, range)")
-            }
-            other => anyhow::bail!("unknown sensor {other:?} (available: lidar2d, range)"),
+            "rgbd" => Sensor::Rgbd,
+            "stereo" => Sensor::Stereo,
+            other => anyhow::bail!("unknown sensor {other:?} (available: {SENSOR_NAMES})"),
         };
         if !sensors.contains(&sensor) {
             sensors.push(sensor);
@@ -72,11 +103,23 @@ pub fn run(args: &SimArgs) -> anyhow::Result<()> {
     let sensors = parse_sensors(&args.sensors)?;
     let world = World::by_name_or_file(&args.world)?;
     let world_toml = toml::to_string(&world).context("serialising the world")?;
-    let config = SimConfig::default();
+    let config = SimConfig {
+        robot: match args.robot {
+            Robot::Drone => RobotKind::Drone,
+            Robot::DiffDrive => RobotKind::DiffDrive,
+        },
+        ..load_config(args.config.as_deref())?
+    };
     let sim = Simulation::new(world, config.clone(), args.seed)?;
+    let duration_s = match args.duration {
+        Some(d) if d.is_finite() && d >= 0.0 => d.min(sim.duration_s()),
+        Some(d) => anyhow::bail!("--duration {d}: must be a number of seconds, 0 or more"),
+        None => sim.duration_s(),
+    };
+    let times = |rate_hz: f64| slamkit_sim::sample_times(duration_s, rate_hz);
     let out = prepare_out_dir(&args.out)?;
     write_file(&out.join("world.toml"), &world_toml)?;
-    let lidar_times = sim.sample_times(config.lidar.rate_hz);
+    let lidar_times = times(config.lidar.rate_hz);
     let ground_truth = sim.ground_truth(&lidar_times);
     write_tum(&out.join("groundtruth.tum"), &ground_truth)?;
     let mut frames = serde_json::Map::new();
@@ -88,26 +131,55 @@ pub fn run(args: &SimArgs) -> anyhow::Result<()> {
         );
     }
     if sensors.contains(&Sensor::Range) {
-        let readings = write_ranges(&sim, &out)?;
+        let readings = write_ranges(&sim, &times(config.range_finder.rate_hz), &out)?;
         frames.insert("range".into(), json!({ "readings": readings }));
     }
+    let mut timings = StageTimings::default();
+    if sensors.contains(&Sensor::Rgbd) {
+        let camera_times = times(config.rgbd.rate_hz);
+        let dir = out.join(cameras::TUM_FOLDER);
+        cameras::write_tum_sequence(&sim, &camera_times, &dir, &mut timings)?;
+        frames.insert("rgbd".into(), json!({ "frames": camera_times.len() }));
+    }
+    if sensors.contains(&Sensor::Stereo) {
+        let camera_times = times(config.stereo.rate_hz);
+        let dir = out.join(cameras::KITTI_FOLDER);
+        cameras::write_kitti_sequence(&sim, &camera_times, &dir, &mut timings)?;
+        frames.insert("stereo".into(), json!({ "frames": camera_times.len() }));
+    }
     let report = json!({
-        "input": { "world": args.world, "sensors": args.sensors, "seed": args.seed },
+        "input": {
+            "world": args.world,
+            "sensors": args.sensors,
+            "robot": format!("{:?}", args.robot),
+            "seed": args.seed,
+        },
         "config": config,
-        "duration_s": sim.duration_s(),
+        "duration_s": duration_s,
         "frames": frames,
         "wall_seconds": started.elapsed().as_secs_f64(),
+        "timings_ms": timings_json(&timings),
         "peak_rss_bytes": peak_rss_bytes(),
     });
     write_report(&out, &report)?;
     println!(
         "simulated {:.1} s of {} in {:.1} s; outputs in {}",
-        sim.duration_s(),
+        duration_s,
         sim.world.name,
         started.elapsed().as_secs_f64(),
         out.display()
     );
     Ok(())
+}
+
+/// The settings of `--config`, or the defaults.
+fn load_config(path: Option<&Path>) -> anyhow::Result<SimConfig> {
+    let Some(path) = path else {
+        return Ok(SimConfig::default());
+    };
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    toml::from_str(&text).with_context(|| format!("parsing config {}", path.display()))
 }
 
 /// Writes `lidar.clf` and `lidar.relations`; returns the numbers of scans and relations.
@@ -134,9 +206,9 @@ fn write_lidar(
     Ok((scans.len(), relations.len()))
 }
 
-/// Writes `ranges.csv`; returns the number of readings.
-fn write_ranges(sim: &Simulation, out: &Path) -> anyhow::Result<usize> {
-    let readings = sim.range_readings(&sim.sample_times(sim.config.range_finder.rate_hz));
+/// Writes `ranges.csv` with the readings at `times`; returns their number.
+fn write_ranges(sim: &Simulation, times: &[f64], out: &Path) -> anyhow::Result<usize> {
+    let readings = sim.range_readings(times);
     let mut text = String::from("timestamp,up_m,down_m\n");
     let field = |r: Option<f64>| r.map(|v| v.to_string()).unwrap_or_default();
     for r in &readings {
