@@ -4,38 +4,46 @@
 //! disappears once the drone climbs over it, a table top appears when it flies under. One 2D map
 //! for every height would mix those slices. Following the seed method (a drone in simulated
 //! rooms with a 2D lidar and up/down range finders), space is cut into horizontal layers
-//! (5 cm by default), and each layer holds its own ICP-SLAM map ([`crate::icp_slam`]), created
-//! when the drone first enters it and re-used whenever it comes back:
+//! (5 cm by default), and each layer holds its own ICP map of keyframe scans ([`layer_map`]),
+//! created when the drone first enters it and re-used whenever it comes back:
 //!
 //! * the layer comes from the up and down range finders ([`height`]): a climb changes both
 //!   ranges by opposite amounts, flying over or under an obstacle changes their sum;
 //! * scans taken while the drone tilts more than `max_tilt_rad` (while accelerating) are not
-//!   matched: the tilted scan plane cuts the room at other heights; the pose follows odometry;
-//! * the first scan of a new layer is aligned by ICP to the map of the layer the drone comes
-//!   from, so that the new map starts where the old one ends (an addition to the seed method,
-//!   which started new layers from the odometry pose);
+//!   matched: the tilted scan plane cuts the room at other heights; the pose follows the
+//!   motion prior;
+//! * the motion prior is the drone's recent velocity, carried through take-offs and stops by
+//!   the acceleration its tilt shows ([`velocity`]), or the scans' odometry if asked;
+//! * on a layer change the scan is first aligned by ICP to the map of the layer the drone comes
+//!   from, so that a new map starts where the old one ends and an old one is re-entered from
+//!   where the drone is (an addition to the seed method, which started new layers from the
+//!   odometry pose);
+//! * a match corrects the prior only along the directions the scan constrains
+//!   ([`degeneracy`]: one wall in range pins the distance to it, not the position along it),
+//!   and only within a gate around the prior; keyframes go in at the corrected pose;
 //! * the pose is 3D: x, y and yaw from the layer's map, height from the range finders, roll
 //!   and pitch from the flight controller.
 //!
-//! Each layer's [`IcpSlam`] works in its own frame (identity at the layer's first scan); the
-//! layer remembers `world_from_layer`. The prediction of the global pose is handed to a layer
-//! as the scan's odometry, chosen so that the layer's own odometry increment lands exactly on
-//! the prediction.
+//! Every layer map is in the world frame (the first scan's pose), so nothing has to be chained
+//! between layers.
 
+pub mod degeneracy;
 pub mod height;
+pub mod layer_map;
 pub mod velocity;
 
-use crate::cloud::scan_points;
-use crate::icp::align;
-use crate::icp_slam::{IcpSlam, IcpSlamConfig, IcpSlamStats, ScanStatus};
+use crate::cloud::{estimate_normals, scan_points};
+use crate::icp_slam::{IcpSlamConfig, ScanStatus};
 use crate::LidarError;
+use degeneracy::{remap, scan_information, weakest};
 use height::{HeightConfig, HeightTracker};
-use nalgebra::{Point3, Translation3, UnitQuaternion};
+use layer_map::{LayerIcpMap, PreparedScan};
+use nalgebra::{Matrix3, Point3, Translation3, UnitQuaternion, Vector2};
 use serde::{Deserialize, Serialize};
 use slamkit_core::{LaserScan, Pose2, Pose3, StageTimings};
 use std::collections::BTreeMap;
 use std::time::Instant;
-use velocity::VelocityTracker;
+use velocity::{tilt_acceleration, VelocityTracker};
 
 /// Parameters of layered ICP-SLAM.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -53,8 +61,24 @@ pub struct LayeredSlamConfig {
     pub use_odometry: bool,
     /// The constant-velocity prior averages the motion over this long \[s\].
     pub velocity_window_s: f64,
-    /// The ICP-SLAM run in every layer (by default keeping every keyframe, so that a layer's
-    /// whole map is there when the drone returns).
+    /// A scan match corrects the prediction only along directions in which the scan's
+    /// information matrix has at least this eigenvalue (about that many points pinning the
+    /// pose; [`degeneracy`]); 0 keeps every match whole.
+    pub min_constraint: f64,
+    /// A match may move the predicted pose by at most this, plus `gate_growth_mps` for every
+    /// second since the last accepted match \[m\]; a larger correction is a false match (the
+    /// prior is good to millimetres per scan) and the prediction is kept.
+    pub gate_m: f64,
+    /// Growth of the translation gate with the time since the last accepted match \[m/s\].
+    pub gate_growth_mps: f64,
+    /// As `gate_m`, for the heading \[rad\].
+    pub gate_rad: f64,
+    /// Growth of the heading gate with the time since the last accepted match \[rad/s\].
+    pub gate_growth_radps: f64,
+    /// Scan matching and keyframe insertion in every layer: the ICP, correlative fallback,
+    /// range, normal, map and insertion settings of ICP-SLAM (its odometry and loop-closure
+    /// settings are not used). By default every keyframe is kept, so that a layer's whole map
+    /// is there when the drone returns.
     pub slam: IcpSlamConfig,
 }
 
@@ -66,6 +90,11 @@ impl Default for LayeredSlamConfig {
             align_new_layer: true,
             use_odometry: false,
             velocity_window_s: 1.0,
+            min_constraint: 20.0,
+            gate_m: 0.05,
+            gate_growth_mps: 0.1,
+            gate_rad: 0.03,
+            gate_growth_radps: 0.1,
             slam: IcpSlamConfig {
                 map_keyframes: 0,
                 ..IcpSlamConfig::default()
@@ -89,6 +118,17 @@ impl LayeredSlamConfig {
             .or_else(|| {
                 (!(self.velocity_window_s.is_finite() && self.velocity_window_s > 0.0))
                     .then_some(window)
+            })
+            .or_else(|| {
+                [
+                    ("min_constraint", self.min_constraint),
+                    ("gate_m", self.gate_m),
+                    ("gate_growth_mps", self.gate_growth_mps),
+                    ("gate_rad", self.gate_rad),
+                    ("gate_growth_radps", self.gate_growth_radps),
+                ]
+                .into_iter()
+                .find(|(_, v)| !(v.is_finite() && *v >= 0.0))
             });
         match bad {
             Some((field, value)) => Err(LidarError::InvalidConfig {
@@ -139,14 +179,6 @@ pub struct LayeredEstimate {
     pub status: LayerScanStatus,
 }
 
-/// One layer's map.
-struct Layer {
-    slam: IcpSlam,
-    world_from_layer: Pose2,
-    /// The odometry last handed to the layer and the pose it answered, in the layer frame.
-    last: Option<(Pose2, Pose2)>,
-}
-
 /// Counters over a run.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
 pub struct LayeredStats {
@@ -162,6 +194,10 @@ pub struct LayeredStats {
     pub layer_returns: usize,
     /// Obstacle edges seen by the range finders.
     pub obstacle_edges: usize,
+    /// Matched scans that left some direction unconstrained (kept from the prediction there).
+    pub scans_degenerate: usize,
+    /// Matches rejected for moving the prediction farther than the gate.
+    pub matches_rejected: usize,
 }
 
 /// A layer's map in the world frame.
@@ -173,21 +209,25 @@ pub struct LayerMap {
     pub z_range_m: [f64; 2],
     /// Map points (world frame, at the layer's mid height) \[m\].
     pub points: Vec<Point3<f64>>,
-    /// Counters of the layer's ICP-SLAM.
-    pub stats: IcpSlamStats,
+    /// Scans given to the layer's map (matched, failed or inserted).
+    pub scans: usize,
+    /// Keyframes inserted into the layer's map.
+    pub keyframes: usize,
 }
 
 /// Layered ICP-SLAM; feed it scans in time order with [`LayeredIcpSlam::process`].
 pub struct LayeredIcpSlam {
     config: LayeredSlamConfig,
     height: HeightTracker,
-    layers: BTreeMap<i64, Layer>,
+    layers: BTreeMap<i64, LayerIcpMap>,
     current: Option<i64>,
     world_from_base: Pose2,
     /// Time of `world_from_base` \[s\].
     last_time_s: Option<f64>,
     last_odometry: Option<Pose2>,
     velocity: VelocityTracker,
+    /// Time of the last accepted match \[s\].
+    last_match_s: Option<f64>,
     stats: LayeredStats,
     timings: StageTimings,
 }
@@ -205,6 +245,7 @@ impl LayeredIcpSlam {
             last_time_s: None,
             last_odometry: None,
             velocity: VelocityTracker::new(config.velocity_window_s),
+            last_match_s: None,
             stats: LayeredStats::default(),
             timings: StageTimings::default(),
             config,
@@ -221,7 +262,8 @@ impl LayeredIcpSlam {
         let height = self
             .height
             .update(vertical(input.up_m), vertical(input.down_m));
-        let predicted = self.predict(input.scan);
+        let accel = tilt_acceleration(roll, pitch);
+        let predicted = self.predict(input.scan, &accel);
         let tilted = cos_tilt.acos() > self.config.max_tilt_rad;
         let (pose, status) = match height {
             None => {
@@ -235,20 +277,17 @@ impl LayeredIcpSlam {
                     (predicted, LayerScanStatus::Tilted)
                 } else {
                     let start = Instant::now();
-                    let (pose, status) = self.match_in_layer(h.layer, input.scan, predicted);
+                    let (pose, status, accepted) =
+                        self.match_in_layer(h.layer, input.scan, predicted);
                     self.timings.record_since("layer_slam", start);
+                    if accepted {
+                        self.velocity.observe(input.scan.timestamp, pose, &accel);
+                        self.last_match_s = Some(input.scan.timestamp);
+                    }
                     (pose, LayerScanStatus::Slam(status))
                 }
             }
         };
-        if matches!(
-            status,
-            LayerScanStatus::Slam(
-                ScanStatus::Matched | ScanStatus::MatchedCorrelative | ScanStatus::Initialised
-            )
-        ) {
-            self.velocity.observe(input.scan.timestamp, pose);
-        }
         self.world_from_base = pose;
         self.last_time_s = Some(input.scan.timestamp);
         let z = height.map_or(0.0, |h| h.height_m);
@@ -263,14 +302,15 @@ impl LayeredIcpSlam {
         }
     }
 
-    /// The last pose moved by the odometry increment, or by the recent velocity.
-    fn predict(&mut self, scan: &LaserScan) -> Pose2 {
+    /// The last pose moved by the odometry increment, or by the recent velocity and the
+    /// acceleration `accel` the tilt shows.
+    fn predict(&mut self, scan: &LaserScan, accel: &Vector2<f64>) -> Pose2 {
         let odometry = scan.odometry.filter(|_| self.config.use_odometry);
         let predicted = match (self.last_odometry, odometry) {
             (Some(prev), Some(cur)) => self.world_from_base * (prev.inverse() * cur),
             _ => {
                 let dt = self.last_time_s.map_or(0.0, |t| scan.timestamp - t);
-                self.velocity.predict(&self.world_from_base, dt)
+                self.velocity.advance(&self.world_from_base, dt, accel)
             }
         };
         if odometry.is_some() {
@@ -279,54 +319,93 @@ impl LayeredIcpSlam {
         renormalised(predicted)
     }
 
-    /// Runs the scan through the map of `layer` from the global `predicted` pose.
+    /// Runs the scan through the map of `layer` from the `predicted` pose; returns the pose, how
+    /// it was found and whether a map fixed it. On a layer change the scan is first aligned to
+    /// the map of the layer the drone comes from, which starts a new layer where the old one
+    /// ends and re-enters an old layer from where the drone really is. Every correction of
+    /// `predicted` is kept only along the directions the scan constrains, and only within the
+    /// gate.
     fn match_in_layer(
         &mut self,
         layer: i64,
         scan: &LaserScan,
         predicted: Pose2,
-    ) -> (Pose2, ScanStatus) {
+    ) -> (Pose2, ScanStatus, bool) {
         let previous = self.current.replace(layer);
-        if previous.is_some_and(|p| p != layer) {
+        let switched_from = previous.filter(|p| *p != layer);
+        if switched_from.is_some() {
             self.stats.layer_switches += 1;
-            if self.layers.contains_key(&layer) {
-                self.stats.layer_returns += 1;
-            }
+            self.stats.layer_returns += usize::from(self.layers.contains_key(&layer));
         }
-        if !self.layers.contains_key(&layer) {
-            let start = previous
-                .and_then(|p| self.layers.get(&p))
-                .filter(|_| self.config.align_new_layer)
-                .map_or(predicted, |from| self.align_to(from, scan, &predicted));
-            let slam = match IcpSlam::new(self.config.slam.clone()) {
-                Ok(slam) => slam,
-                // the configuration was validated in `new`
-                Err(_) => return (predicted, ScanStatus::Skipped),
-            };
-            let fresh = Layer {
-                slam,
-                world_from_layer: renormalised(start),
-                last: None,
-            };
-            self.layers.insert(layer, fresh);
-        }
-        let Some(entry) = self.layers.get_mut(&layer) else {
-            return (predicted, ScanStatus::Skipped);
-        };
-        feed(entry, scan, &predicted)
-    }
-
-    /// `predicted` refined by aligning the scan to another layer's map, when ICP agrees well.
-    fn align_to(&self, from: &Layer, scan: &LaserScan, predicted: &Pose2) -> Pose2 {
         let c = &self.config.slam;
         let points = scan_points(scan, c.min_range_m, c.max_range_m);
-        let guess = from.world_from_layer.inverse() * predicted;
-        match align(&points, from.slam.map().index(), &guess, &c.icp) {
-            Ok(res) if res.goodness >= c.min_goodness => {
-                from.world_from_layer * res.target_from_source
-            }
-            _ => *predicted,
+        let normals = estimate_normals(
+            &points,
+            c.normal_neighbours,
+            c.normal_radius_m,
+            c.normal_max_flatness,
+        );
+        let information = scan_information(&points, &normals);
+        let prepared = PreparedScan { points, normals };
+        let aligned = switched_from
+            .filter(|_| self.config.align_new_layer)
+            .and_then(|p| self.layers.get(&p))
+            .and_then(|from| {
+                self.accept(
+                    from.match_scan(&prepared, &predicted, c).world_from_base,
+                    &predicted,
+                    &information,
+                    scan.timestamp,
+                )
+            });
+        let guess = aligned.unwrap_or(predicted);
+        let entry = self
+            .layers
+            .entry(layer)
+            .or_insert_with(|| LayerIcpMap::new(&self.config.slam));
+        let raw = entry.match_scan(&prepared, &guess, &self.config.slam);
+        let matched = raw
+            .world_from_base
+            .and_then(|pose| self.accept(Some(pose), &predicted, &information, scan.timestamp));
+        if raw.world_from_base.is_some() && matched.is_none() {
+            self.stats.matches_rejected += 1;
         }
+        let status = match (raw.status, matched) {
+            (ScanStatus::Matched | ScanStatus::MatchedCorrelative, None) => ScanStatus::MatchFailed,
+            (status, _) => status,
+        };
+        let fixed = matched.or(aligned);
+        if fixed.is_some() && weakest(&information) < self.config.min_constraint {
+            self.stats.scans_degenerate += 1;
+        }
+        let pose = renormalised(fixed.unwrap_or(guess));
+        if let Some(entry) = self.layers.get_mut(&layer) {
+            entry.record(&prepared, &pose, fixed.is_some(), &self.config.slam);
+        }
+        (pose, status, fixed.is_some())
+    }
+
+    /// A raw match kept along the directions the scan constrains (`information`), if that is
+    /// within the gate around `predicted` at time `t_s`.
+    fn accept(
+        &self,
+        raw: Option<Pose2>,
+        predicted: &Pose2,
+        information: &Matrix3<f64>,
+        t_s: f64,
+    ) -> Option<Pose2> {
+        let raw = raw?;
+        let kept = remap(predicted, &raw, information, self.config.min_constraint);
+        self.within_gate(predicted, &kept, t_s).then_some(kept)
+    }
+
+    /// True when `pose` is within the gate around `predicted` at time `t_s`.
+    fn within_gate(&self, predicted: &Pose2, pose: &Pose2, t_s: f64) -> bool {
+        let c = &self.config;
+        let since = self.last_match_s.map_or(0.0, |last| (t_s - last).max(0.0));
+        let d = predicted.inverse() * pose;
+        d.translation.vector.norm() <= c.gate_m + c.gate_growth_mps * since
+            && d.rotation.angle().abs() <= c.gate_rad + c.gate_growth_radps * since
     }
 
     /// The current height layer.
@@ -353,20 +432,17 @@ impl LayeredIcpSlam {
                 let bottom = layer as f64 * h;
                 let z = bottom + h / 2.0;
                 let points = l
-                    .slam
                     .map()
                     .points()
                     .iter()
-                    .map(|p| {
-                        let w = l.world_from_layer * p;
-                        Point3::new(w.x, w.y, z)
-                    })
+                    .map(|p| Point3::new(p.x, p.y, z))
                     .collect();
                 LayerMap {
                     layer,
                     z_range_m: [bottom, bottom + h],
                     points,
-                    stats: *l.slam.stats(),
+                    scans: l.scans(),
+                    keyframes: l.map().keyframes_inserted(),
                 }
             })
             .collect()
@@ -381,28 +457,10 @@ impl LayeredIcpSlam {
     }
 }
 
-/// Hands `scan` to a layer with an odometry reading chosen so that the layer's prediction
-/// (its last pose moved by the odometry increment) is `predicted`; returns the world pose.
-fn feed(layer: &mut Layer, scan: &LaserScan, predicted: &Pose2) -> (Pose2, ScanStatus) {
-    let in_layer = layer.world_from_layer.inverse() * predicted;
-    let odometry = renormalised(match layer.last {
-        Some((last_odometry, last_pose)) => last_odometry * last_pose.inverse() * in_layer,
-        None => in_layer,
-    });
-    let mut scan = scan.clone();
-    scan.odometry = Some(odometry);
-    let estimate = layer.slam.process(&scan);
-    layer.last = Some((odometry, estimate.world_from_base));
-    (
-        renormalised(layer.world_from_layer * estimate.world_from_base),
-        estimate.status,
-    )
-}
-
 /// `pose` with its rotation scaled back to unit length. The inverse of a rotation is taken to be
-/// its conjugate, so a rotation slightly off unit length stays off in every product; the chain
-/// odometry → layer prediction → estimate → next odometry multiplies those errors, which grew
-/// from 1e-16 to a collapsed (zero) rotation within a hundred scans before this was applied.
+/// its conjugate, so a rotation slightly off unit length stays off in every product; a chain of
+/// predictions from estimates from predictions multiplies those errors (they once grew from
+/// 1e-16 to a collapsed, zero rotation within a hundred scans).
 fn renormalised(mut pose: Pose2) -> Pose2 {
     pose.rotation.renormalize();
     pose

@@ -97,8 +97,8 @@ fn flight() -> Vec<Step> {
 #[test]
 fn one_map_per_layer_reused_on_return_and_tilted_scans_skipped() {
     let (low, high) = worlds();
-    // the odometry below reads 5 % long but has no noise: a better prior than constant velocity
-    // through the stop at the end of the flight
+    // the flight stops dead at the end, with no tilt, which no drone can: the odometry (5 %
+    // long, no noise) is the prior that follows it
     let config = LayeredSlamConfig {
         use_odometry: true,
         ..LayeredSlamConfig::default()

@@ -9,8 +9,17 @@
 //! velocity averaged over a window rather than taken from the last step alone (one step's ICP
 //! noise is of the order of the step). Velocities are body-frame twists: poses are mapped
 //! through the SE(2) logarithm and exponential, so a turn while flying follows an arc.
+//!
+//! A multirotor accelerates by tilting its thrust: a pitch `θ` and roll `φ` mean a horizontal
+//! acceleration `g·tan θ` forward and `−g·tan φ` to the left (Mahony, Kumar and Corke,
+//! "Multirotor aerial vehicles", IEEE RAM 19(3), 2012). The tracker integrates that acceleration
+//! between matches, which carries the velocity through the take-offs and stops whose scans are
+//! not matched (they are the tilted ones), and corrects the window's mean velocity, which lags
+//! by half the window, to the current one.
 
 use nalgebra::{Vector2, Vector3};
+/// Standard gravity \[m/s²\].
+const GRAVITY_MPS2: f64 = 9.80665;
 use slamkit_core::Pose2;
 use std::collections::VecDeque;
 
@@ -40,11 +49,19 @@ fn v_coefficients(theta: f64) -> (f64, f64) {
     }
 }
 
+/// Horizontal body-frame acceleration `(forward, left)` of a multirotor flying level at roll
+/// `roll_rad` and pitch `pitch_rad` \[m/s²\].
+pub fn tilt_acceleration(roll_rad: f64, pitch_rad: f64) -> Vector2<f64> {
+    Vector2::new(pitch_rad.tan(), -roll_rad.tan()) * GRAVITY_MPS2
+}
+
 /// Recent matched poses and the body-frame velocity they imply.
 #[derive(Debug, Clone)]
 pub struct VelocityTracker {
     window_s: f64,
     history: VecDeque<(f64, Pose2)>,
+    /// Current twist `(vx, vy, ω)` \[m/s, m/s, rad/s\].
+    velocity: Vector3<f64>,
 }
 
 impl VelocityTracker {
@@ -54,12 +71,14 @@ impl VelocityTracker {
         Self {
             window_s,
             history: VecDeque::new(),
+            velocity: Vector3::zeros(),
         }
     }
 
-    /// Records the pose fixed by a map match at time `t` \[s\]. A time not after the last one
-    /// (a log that jumps back) restarts the history.
-    pub fn observe(&mut self, t: f64, pose: Pose2) {
+    /// Records the pose fixed by a map match at time `t` \[s\], taken while accelerating by
+    /// `accel` (body frame, \[m/s²\]). A time not after the last one (a log that jumps back)
+    /// restarts the history.
+    pub fn observe(&mut self, t: f64, pose: Pose2, accel: &Vector2<f64>) {
         if self.history.back().is_some_and(|(last, _)| t <= *last) {
             self.history.clear();
         }
@@ -71,22 +90,29 @@ impl VelocityTracker {
         {
             self.history.pop_front();
         }
-    }
-
-    /// Body-frame twist per second `(vx, vy, ω)` over the window \[m/s, m/s, rad/s\]; zero with
-    /// fewer than two poses.
-    pub fn twist(&self) -> Vector3<f64> {
-        match (self.history.front(), self.history.back()) {
-            (Some((t0, p0)), Some((t1, p1))) if t1 > t0 => {
-                se2_log(&(p0.inverse() * p1)) / (t1 - t0)
+        if let (Some((t0, p0)), Some((t1, p1))) = (self.history.front(), self.history.back()) {
+            let span = t1 - t0;
+            if span > 0.0 {
+                let lag = accel * (span / 2.0);
+                self.velocity =
+                    se2_log(&(p0.inverse() * p1)) / span + Vector3::new(lag.x, lag.y, 0.0);
             }
-            _ => Vector3::zeros(),
         }
     }
 
-    /// `from` moved on at the current velocity for `dt_s` seconds.
-    pub fn predict(&self, from: &Pose2, dt_s: f64) -> Pose2 {
-        from * se2_exp(&(self.twist() * dt_s.max(0.0)))
+    /// Current body-frame twist `(vx, vy, ω)` \[m/s, m/s, rad/s\]; zero before two poses.
+    pub fn twist(&self) -> Vector3<f64> {
+        self.velocity
+    }
+
+    /// `from` moved on for `dt_s` seconds at the current velocity, accelerating by `accel`
+    /// (body frame, \[m/s²\]); the velocity becomes the one at the end.
+    pub fn advance(&mut self, from: &Pose2, dt_s: f64, accel: &Vector2<f64>) -> Pose2 {
+        let dt = dt_s.max(0.0);
+        let dv = accel * dt;
+        let mean = self.velocity + Vector3::new(dv.x, dv.y, 0.0) / 2.0;
+        self.velocity += Vector3::new(dv.x, dv.y, 0.0);
+        from * se2_exp(&(mean * dt))
     }
 }
 
@@ -108,17 +134,42 @@ mod tests {
         let twist = Vector3::new(0.0, 0.1, 0.4);
         let start = Pose2::new(Vector2::new(1.0, 2.0), 0.3);
         let mut tracker = VelocityTracker::new(1.0);
+        let level = Vector2::zeros();
         for k in 0..15 {
             let t = 0.1 * f64::from(k);
-            tracker.observe(t, start * se2_exp(&(twist * t)));
+            tracker.observe(t, start * se2_exp(&(twist * t)), &level);
         }
         assert!((tracker.twist() - twist).norm() < 1e-9);
         let at = start * se2_exp(&(twist * 1.4));
-        let predicted = tracker.predict(&at, 0.7);
+        let predicted = tracker.advance(&at, 0.7, &level);
         let truth = start * se2_exp(&(twist * 2.1));
         assert!((predicted.translation.vector - truth.translation.vector).norm() < 1e-9);
         // a restarted log starts a new history: no velocity from one pose
-        tracker.observe(0.0, start);
-        assert_eq!(tracker.twist(), Vector3::zeros());
+        let mut restarted = VelocityTracker::new(1.0);
+        restarted.observe(0.0, start, &level);
+        assert_eq!(restarted.twist(), Vector3::zeros());
+    }
+
+    #[test]
+    fn tilt_carries_the_velocity_through_a_stop() {
+        // flying forward at 0.1 m/s, then braking at 0.1 m/s² (nose up) for one second
+        let mut tracker = VelocityTracker::new(1.0);
+        let level = Vector2::zeros();
+        for k in 0..11 {
+            let t = 0.1 * f64::from(k);
+            tracker.observe(t, Pose2::new(Vector2::new(0.1 * t, 0.0), 0.0), &level);
+        }
+        let pitch = (-0.1 / GRAVITY_MPS2).atan();
+        let brake = tilt_acceleration(0.0, pitch);
+        assert!((brake - Vector2::new(-0.1, 0.0)).norm() < 1e-12);
+        let mut pose = Pose2::new(Vector2::new(0.1, 0.0), 0.0);
+        for _ in 0..10 {
+            pose = tracker.advance(&pose, 0.1, &brake);
+        }
+        // 0.1 m/s for 1 s minus half of 0.1 m/s² · 1 s²: 0.05 m further, standing still
+        assert!((pose.translation.x - 0.15).abs() < 1e-9, "{pose}");
+        assert!(tracker.twist().norm() < 1e-12);
+        // a roll to the right (positive) accelerates to the right (negative y)
+        assert!(tilt_acceleration(0.01, 0.0).y < 0.0);
     }
 }
