@@ -1,8 +1,8 @@
 //! 2D iterative closest point: point-to-point (Besl & McKay 1992) and point-to-line (Chen &
 //! Medioni 1992; Censi, "An ICP variant using a point-to-line metric", ICRA 2008).
 //!
-//! Each iteration pairs every source point with its nearest target point (k-d tree), rejects
-//! pairs farther than a distance threshold, weights the rest with a robust kernel (iteratively
+//! Each iteration pairs every source point with its nearest target point within a distance
+//! threshold (k-d tree or uniform grid, see [`crate::nn`]), drops the points with none, weights the rest with a robust kernel (iteratively
 //! reweighted least squares; Zhang 1997 for the M-estimators) and takes one Gauss–Newton or
 //! Levenberg–Marquardt step on the pose. Like MRPT's `CICP`, the threshold starts wide and, each
 //! time the pose stops moving, is multiplied by a factor below one until it reaches its minimum:
@@ -12,7 +12,7 @@
 //! `target_from_source ← exp(δ) · target_from_source`, so for a transformed point `q` the
 //! Jacobian of `q` with respect to `δ = (δx, δy, δθ)` is `\[I | (−q_y, q_x)ᵀ\]`.
 
-use crate::nn::PointIndex;
+use crate::nn::NearestNeighbours;
 use crate::LidarError;
 use nalgebra::{Matrix3, Point2, Vector2, Vector3};
 use serde::{Deserialize, Serialize};
@@ -177,9 +177,9 @@ struct Pair {
 }
 
 /// Aligns `source` points to `target`, starting from `initial` (`target_from_source`).
-pub fn align(
+pub fn align<T: NearestNeighbours + ?Sized>(
     source: &[Point2<f64>],
-    target: &PointIndex,
+    target: &T,
     initial: &Pose2,
     config: &IcpConfig,
 ) -> Result<IcpResult, LidarError> {
@@ -245,9 +245,9 @@ pub fn align(
 
 /// Fraction of `source` points that, moved by `target_from_source`, have a target point within
 /// `max_dist_m`.
-pub fn goodness(
+pub fn goodness<T: NearestNeighbours + ?Sized>(
     source: &[Point2<f64>],
-    target: &PointIndex,
+    target: &T,
     target_from_source: &Pose2,
     max_dist_m: f64,
 ) -> f64 {
@@ -258,17 +258,17 @@ pub fn goodness(
         .iter()
         .filter(|p| {
             target
-                .nearest(&(target_from_source * *p))
-                .is_some_and(|n| n.distance_m <= max_dist_m)
+                .nearest_within(&(target_from_source * *p), max_dist_m)
+                .is_some()
         })
         .count();
     matched as f64 / source.len() as f64
 }
 
 /// Pairs each source point with its nearest target point within `max_dist_m`.
-fn pair_up(
+fn pair_up<T: NearestNeighbours + ?Sized>(
     source: &[Point2<f64>],
-    target: &PointIndex,
+    target: &T,
     pose: &Pose2,
     max_dist_m: f64,
     metric: IcpMetric,
@@ -276,10 +276,7 @@ fn pair_up(
 ) {
     pairs.clear();
     pairs.extend(source.iter().filter_map(|p| {
-        let nn = target.nearest(&(pose * p))?;
-        if nn.distance_m > max_dist_m {
-            return None;
-        }
+        let nn = target.nearest_within(&(pose * p), max_dist_m)?;
         Some(Pair {
             source: *p,
             target: *target.point(nn.index)?,

@@ -1,10 +1,42 @@
-//! Nearest-neighbour search over 2D points: a thin wrapper over kiddo's immutable k-d tree that
-//! keeps the points (and optional surface normals) beside the tree, so matchers get geometry
-//! back rather than bare indices.
+//! Nearest-neighbour search over 2D points, keeping the points (and optional surface normals)
+//! beside the index, so matchers get geometry back rather than bare indices: [`PointIndex`], a
+//! thin wrapper over kiddo's immutable k-d tree (unbounded and k-nearest queries), and
+//! [`GridIndex`], a uniform grid that answers the radius-bounded queries of ICP faster. ICP
+//! takes either through [`NearestNeighbours`].
 
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use nalgebra::{Point2, UnitComplex, Vector2};
 use std::collections::HashSet;
+
+pub mod grid;
+pub use grid::GridIndex;
+
+/// The queries ICP makes of a point set.
+pub trait NearestNeighbours {
+    /// The nearest point to `query` at most `max_dist_m` away, or `None` when there is none or
+    /// the query is not finite.
+    fn nearest_within(&self, query: &Point2<f64>, max_dist_m: f64) -> Option<Neighbour>;
+
+    /// Point `i`.
+    fn point(&self, i: usize) -> Option<&Point2<f64>>;
+
+    /// Unit normal of point `i`, when it has one.
+    fn normal(&self, i: usize) -> Option<Vector2<f64>>;
+}
+
+impl NearestNeighbours for PointIndex {
+    fn nearest_within(&self, query: &Point2<f64>, max_dist_m: f64) -> Option<Neighbour> {
+        self.nearest(query).filter(|n| n.distance_m <= max_dist_m)
+    }
+
+    fn point(&self, i: usize) -> Option<&Point2<f64>> {
+        PointIndex::point(self, i)
+    }
+
+    fn normal(&self, i: usize) -> Option<Vector2<f64>> {
+        PointIndex::normal(self, i)
+    }
+}
 
 /// Points with optional unit normals, indexed for nearest-neighbour queries.
 pub struct PointIndex {

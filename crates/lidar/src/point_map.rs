@@ -1,5 +1,5 @@
 //! The map ICP-SLAM matches against: the points of keyframe scans in the world frame, thinned
-//! to one point per voxel and indexed in a k-d tree, each with the surface normal estimated in
+//! to one point per voxel and indexed in a uniform grid ([`GridIndex`]), each with the surface normal estimated in
 //! its own scan.
 //!
 //! Two modes, as in the literature: a sliding window of the most recent keyframes (a local
@@ -8,10 +8,14 @@
 //! map, which re-anchors the robot on its old map when it comes back with little drift).
 
 use crate::cloud::voxel_key;
-use crate::nn::PointIndex;
+use crate::nn::GridIndex;
 use nalgebra::{Point2, Vector2};
 use slamkit_core::Pose2;
 use std::collections::{HashMap, VecDeque};
+
+/// Side of the nearest-neighbour grid's cells in map voxels: with one point per voxel a cell
+/// holds a few points of a wall, and a query near a wall reads about nine cells.
+const GRID_CELL_VOXELS: f64 = 2.0;
 
 /// A scan inserted into the map.
 #[derive(Debug, Clone, PartialEq)]
@@ -32,7 +36,7 @@ pub struct KeyframeMap {
     voxels: HashMap<(i64, i64), usize>,
     points: Vec<Point2<f64>>,
     normals: Vec<Option<Vector2<f64>>>,
-    index: PointIndex,
+    index: GridIndex,
     keyframes_inserted: usize,
 }
 
@@ -47,7 +51,7 @@ impl KeyframeMap {
             voxels: HashMap::new(),
             points: Vec::new(),
             normals: Vec::new(),
-            index: PointIndex::new(Vec::new(), None),
+            index: GridIndex::new(Vec::new(), None, voxel_m * GRID_CELL_VOXELS),
             keyframes_inserted: 0,
         }
     }
@@ -104,7 +108,11 @@ impl KeyframeMap {
     }
 
     fn reindex(&mut self) {
-        self.index = PointIndex::new(self.points.clone(), Some(self.normals.clone()));
+        self.index = GridIndex::new(
+            self.points.clone(),
+            Some(self.normals.clone()),
+            self.voxel_m * GRID_CELL_VOXELS,
+        );
     }
 
     /// Adds the keyframe's points whose voxel is still empty.
@@ -123,7 +131,7 @@ impl KeyframeMap {
     }
 
     /// The indexed map points (world frame) with their normals.
-    pub fn index(&self) -> &PointIndex {
+    pub fn index(&self) -> &GridIndex {
         &self.index
     }
 
@@ -146,6 +154,7 @@ impl KeyframeMap {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::nn::NearestNeighbours;
     use std::f64::consts::FRAC_PI_2;
 
     fn kf(x: f64, pts: &[(f64, f64)]) -> Keyframe {

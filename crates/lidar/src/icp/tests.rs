@@ -1,5 +1,6 @@
 use super::*;
 use crate::cloud::{estimate_normals, scan_points};
+use crate::nn::{GridIndex, PointIndex};
 use crate::sim_scan::SegmentWorld;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -82,6 +83,19 @@ fn point_to_line_converges_in_fewer_iterations() {
         p2l.iterations,
         p2p.iterations
     );
+}
+
+#[test]
+fn grid_and_kd_tree_give_the_same_alignment() {
+    let a = Pose2::new(Vector2::new(0.3, -0.2), 0.1);
+    let b = Pose2::new(Vector2::new(0.5, -0.1), 0.2);
+    let (source, tree, _) = fixture(a, b);
+    let normals = (0..tree.len()).map(|i| tree.normal(i)).collect();
+    let grid = GridIndex::new(tree.points().to_vec(), Some(normals), 0.1);
+    let config = IcpConfig::default();
+    let by_tree = align(&source, &tree, &Pose2::identity(), &config).unwrap();
+    let by_grid = align(&source, &grid, &Pose2::identity(), &config).unwrap();
+    assert_eq!(by_tree, by_grid);
 }
 
 #[test]

@@ -1,0 +1,382 @@
+//! Exact nearest-neighbour search on a uniform grid, for queries with a bounded radius.
+//!
+//! ICP only asks for neighbours within its correspondence threshold (at most a few decimetres),
+//! and its map is thinned to one point per voxel, so a regular grid answers a query by reading
+//! the few cells around it: no tree descent, no backtracking, and the build is one counting sort
+//! (the "uniform grid" of Akenine-Möller et al., *Real-Time Rendering*, ch. 25, used for ICP
+//! correspondences by, e.g., KISS-ICP's voxel hash map, Vizzo et al. 2023). Cells are stored
+//! row-major in compressed form (points sorted by cell, one start offset per cell), so a run of
+//! cells along a row is one contiguous slice of points.
+//!
+//! The search visits square rings of cells around the query's cell, nearest ring first, and
+//! stops once the nearest point found is closer than anything the next ring could hold, or the
+//! ring lies beyond the radius: the answer is the exact nearest point within the radius.
+
+use super::{NearestNeighbours, Neighbour};
+use nalgebra::{Point2, Vector2};
+
+/// Points and queries farther than this from the origin along an axis are ignored (no scanner
+/// sees them; it keeps cell arithmetic far from overflow) \[m\].
+const MAX_COORDINATE_M: f64 = 1e7;
+
+/// The grid never has more cells than this; a wider point set gets larger cells.
+const MAX_CELLS: usize = 1 << 22;
+
+/// Points (with optional unit normals) sorted into the cells of a uniform grid.
+pub struct GridIndex {
+    points: Vec<Point2<f64>>,
+    normals: Vec<Option<Vector2<f64>>>,
+    cell_m: f64,
+    origin: Point2<f64>,
+    width: usize,
+    height: usize,
+    /// Points of cell `k` are `sorted[starts[k]..starts[k + 1]]` (row-major `k = j·width + i`).
+    starts: Vec<u32>,
+    /// Indexed points in cell order.
+    sorted: Vec<Point2<f64>>,
+    /// Index into `points` of each entry of `sorted`.
+    sorted_ids: Vec<u32>,
+}
+
+impl GridIndex {
+    /// Indexes `points` in cells of side `cell_m` (a few times the map's point spacing and below
+    /// the usual query radius is fastest; any positive size gives the same answers). `normals`,
+    /// when given, must have one entry per point; a length mismatch drops them. Non-finite
+    /// points are kept (so indices match the input) but never returned by a query.
+    pub fn new(
+        points: Vec<Point2<f64>>,
+        normals: Option<Vec<Option<Vector2<f64>>>>,
+        cell_m: f64,
+    ) -> Self {
+        let normals = match normals {
+            Some(n) if n.len() == points.len() => n,
+            _ => vec![None; points.len()],
+        };
+        let usable =
+            |p: &Point2<f64>| p.x.abs() <= MAX_COORDINATE_M && p.y.abs() <= MAX_COORDINATE_M;
+        let (min, max) = points.iter().filter(|p| usable(p)).fold(
+            (
+                Point2::new(f64::MAX, f64::MAX),
+                Point2::new(f64::MIN, f64::MIN),
+            ),
+            |(lo, hi), p| (lo.inf(p), hi.sup(p)),
+        );
+        let mut cell_m = if cell_m.is_finite() && cell_m > 0.0 {
+            cell_m
+        } else {
+            0.1
+        };
+        let extent = (max - min).map(|e| e.max(0.0));
+        // Grow the cells until the grid fits the cell budget.
+        while (extent.x / cell_m + 1.0) * (extent.y / cell_m + 1.0) > MAX_CELLS as f64 {
+            cell_m *= 2.0;
+        }
+        let (width, height) = if min.x <= max.x {
+            (
+                (extent.x / cell_m).floor() as usize + 1,
+                (extent.y / cell_m).floor() as usize + 1,
+            )
+        } else {
+            (0, 0)
+        };
+        let mut grid = Self {
+            points,
+            normals,
+            cell_m,
+            origin: if width > 0 { min } else { Point2::origin() },
+            width,
+            height,
+            starts: Vec::new(),
+            sorted: Vec::new(),
+            sorted_ids: Vec::new(),
+        };
+        grid.sort_into_cells(usable);
+        grid
+    }
+
+    /// Counting sort of the usable points by cell.
+    fn sort_into_cells(&mut self, usable: impl Fn(&Point2<f64>) -> bool) {
+        let cells: Vec<Option<usize>> = self
+            .points
+            .iter()
+            .map(|p| usable(p).then(|| self.cell_of(p)).flatten())
+            .collect();
+        let mut starts = vec![0u32; self.width * self.height + 1];
+        for k in cells.iter().flatten() {
+            if let Some(s) = starts.get_mut(k + 1) {
+                *s += 1;
+            }
+        }
+        for k in 1..starts.len() {
+            starts[k] += starts[k - 1];
+        }
+        let mut next = starts.clone();
+        let total = starts.last().copied().unwrap_or(0) as usize;
+        self.sorted = vec![Point2::origin(); total];
+        self.sorted_ids = vec![0; total];
+        for (id, k) in cells.iter().enumerate() {
+            let Some(slot) = k.and_then(|k| next.get_mut(k)) else {
+                continue;
+            };
+            let at = *slot as usize;
+            *slot += 1;
+            if let (Some(p), Some(s), Some(i)) = (
+                self.points.get(id),
+                self.sorted.get_mut(at),
+                self.sorted_ids.get_mut(at),
+            ) {
+                *s = *p;
+                *i = id as u32;
+            }
+        }
+        self.starts = starts;
+    }
+
+    /// Row-major cell of an indexed point.
+    fn cell_of(&self, p: &Point2<f64>) -> Option<usize> {
+        let (i, j) = self.cell_coords(p);
+        let (i, j) = (usize::try_from(i).ok()?, usize::try_from(j).ok()?);
+        (i < self.width && j < self.height).then_some(j * self.width + i)
+    }
+
+    /// Cell coordinates of `p` (possibly outside the grid), clamped far from overflow.
+    fn cell_coords(&self, p: &Point2<f64>) -> (i64, i64) {
+        let f = (p - self.origin) / self.cell_m;
+        let clamp = |v: f64| v.clamp(-1e12, 1e12).floor() as i64;
+        (clamp(f.x), clamp(f.y))
+    }
+
+    /// Number of points given (indexed or not).
+    pub fn len(&self) -> usize {
+        self.points.len()
+    }
+
+    /// True when no point was given.
+    pub fn is_empty(&self) -> bool {
+        self.points.is_empty()
+    }
+
+    /// The points given, in input order.
+    pub fn points(&self) -> &[Point2<f64>] {
+        &self.points
+    }
+
+    /// Side of the cells \[m\] (larger than asked when the points spread very wide).
+    pub fn cell_m(&self) -> f64 {
+        self.cell_m
+    }
+
+    /// Checks the points of cells `i0..=i1` of row `j` (clipped to the grid) against `best`.
+    fn scan_row(&self, q: &Point2<f64>, j: i64, i0: i64, i1: i64, best: &mut (f64, Option<u32>)) {
+        let (w, h) = (self.width as i64, self.height as i64);
+        let (i0, i1) = (i0.max(0), i1.min(w - 1));
+        if j < 0 || j >= h || i0 > i1 {
+            return;
+        }
+        let row = j * w;
+        let (Ok(a), Ok(b)) = (usize::try_from(row + i0), usize::try_from(row + i1 + 1)) else {
+            return;
+        };
+        let (Some(&start), Some(&end)) = (self.starts.get(a), self.starts.get(b)) else {
+            return;
+        };
+        let range = start as usize..end as usize;
+        let (Some(pts), Some(ids)) = (self.sorted.get(range.clone()), self.sorted_ids.get(range))
+        else {
+            return;
+        };
+        for (p, &id) in pts.iter().zip(ids) {
+            let d2 = (p - q).norm_squared();
+            if d2 < best.0 || (d2 == best.0 && best.1.is_none()) {
+                *best = (d2, Some(id));
+            }
+        }
+    }
+}
+
+impl NearestNeighbours for GridIndex {
+    fn nearest_within(&self, query: &Point2<f64>, max_dist_m: f64) -> Option<Neighbour> {
+        let far = |v: f64| v.is_nan() || v.abs() > MAX_COORDINATE_M;
+        if self.sorted.is_empty() || far(query.x) || far(query.y) {
+            return None;
+        }
+        if max_dist_m.is_nan() || max_dist_m < 0.0 {
+            return None;
+        }
+        let (ci, cj) = self.cell_coords(query);
+        let f = (query - self.origin) / self.cell_m;
+        let (fx, fy) = (f.x - ci as f64, f.y - cj as f64);
+        // Distance (in cells) from the query to the border of its own cell.
+        let inner = fx.min(1.0 - fx).min(fy).min(1.0 - fy).max(0.0);
+        let limit = max_dist_m.min(f64::MAX);
+        let mut best = (limit * limit, None);
+        let (w, h) = (self.width as i64, self.height as i64);
+        // Rings nearer than this hold no cell of the grid.
+        let mut k = [0, -ci, ci - (w - 1), -cj, cj - (h - 1)]
+            .into_iter()
+            .max()
+            .unwrap_or(0);
+        loop {
+            // Every cell of ring k or beyond is at least this far from the query.
+            let ring_min = if k == 0 {
+                0.0
+            } else {
+                ((k - 1) as f64 + inner) * self.cell_m
+            };
+            if ring_min * ring_min > best.0 {
+                break;
+            }
+            if k == 0 {
+                self.scan_row(query, cj, ci, ci, &mut best);
+            } else {
+                self.scan_row(query, cj - k, ci - k, ci + k, &mut best);
+                self.scan_row(query, cj + k, ci - k, ci + k, &mut best);
+                for j in (cj - k + 1).max(0)..=(cj + k - 1).min(h - 1) {
+                    self.scan_row(query, j, ci - k, ci - k, &mut best);
+                    self.scan_row(query, j, ci + k, ci + k, &mut best);
+                }
+            }
+            let covers_grid = ci - k <= 0 && cj - k <= 0 && ci + k >= w - 1 && cj + k >= h - 1;
+            if covers_grid {
+                break;
+            }
+            k += 1;
+        }
+        let (d2, id) = best;
+        Some(Neighbour {
+            index: id? as usize,
+            distance_m: d2.sqrt(),
+        })
+    }
+
+    fn point(&self, i: usize) -> Option<&Point2<f64>> {
+        self.points.get(i)
+    }
+
+    fn normal(&self, i: usize) -> Option<Vector2<f64>> {
+        self.normals.get(i).copied().flatten()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    /// Nearest point of `pts` within `r` of `q` by brute force: (distance, index).
+    fn brute(pts: &[Point2<f64>], q: &Point2<f64>, r: f64) -> Option<(f64, usize)> {
+        pts.iter()
+            .enumerate()
+            .filter(|(_, p)| p.x.is_finite() && p.y.is_finite())
+            .map(|(i, p)| ((p - q).norm(), i))
+            .filter(|(d, _)| *d <= r)
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+    }
+
+    fn check(grid: &GridIndex, pts: &[Point2<f64>], q: &Point2<f64>, r: f64) {
+        let got = grid.nearest_within(q, r);
+        match (brute(pts, q, r), got) {
+            (None, None) => {}
+            (Some((d, _)), Some(n)) => {
+                assert!(
+                    (n.distance_m - d).abs() < 1e-12,
+                    "{q:?} r {r}: {} vs {d}",
+                    n.distance_m
+                );
+                let p = grid.point(n.index).unwrap();
+                assert!(((p - q).norm() - d).abs() < 1e-12);
+            }
+            (b, g) => panic!("{q:?} r {r}: brute {b:?}, grid {g:?}"),
+        }
+    }
+
+    #[test]
+    fn random_points_match_brute_force_at_every_cell_size_and_radius() {
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        let pts: Vec<Point2<f64>> = (0..400)
+            .map(|_| Point2::new(rng.gen_range(-5.0..5.0), rng.gen_range(-3.0..3.0)))
+            .collect();
+        for cell in [0.03, 0.1, 0.3, 2.0, 50.0] {
+            let grid = GridIndex::new(pts.clone(), None, cell);
+            for _ in 0..300 {
+                let q = Point2::new(rng.gen_range(-7.0..7.0), rng.gen_range(-5.0..5.0));
+                for r in [0.0, 0.05, 0.3, 1.0, f64::INFINITY] {
+                    check(&grid, &pts, &q, r);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn walls_and_far_queries_match_brute_force() {
+        // Two axis-aligned walls at the map's 5 cm spacing, queried on and far off the grid.
+        let mut pts = Vec::new();
+        for i in 0..200 {
+            pts.push(Point2::new(6.0, -4.0 + i as f64 * 0.05));
+            pts.push(Point2::new(-6.0 + i as f64 * 0.05, 4.0));
+        }
+        let grid = GridIndex::new(pts.clone(), None, 0.1);
+        let mut rng = ChaCha8Rng::seed_from_u64(12);
+        for _ in 0..500 {
+            let q = Point2::new(rng.gen_range(-40.0..40.0), rng.gen_range(-40.0..40.0));
+            for r in [0.3, 5.0, f64::INFINITY] {
+                check(&grid, &pts, &q, r);
+            }
+        }
+        // Exactly on a point, and at exactly the radius.
+        let on = grid.nearest_within(&Point2::new(6.0, 1.0), 0.0).unwrap();
+        assert_eq!(on.distance_m, 0.0);
+        assert!(grid.nearest_within(&Point2::new(6.5, 1.0), 0.5).is_some());
+        assert!(grid
+            .nearest_within(&Point2::new(6.5, 1.0), 0.4999)
+            .is_none());
+    }
+
+    #[test]
+    fn bad_points_queries_and_sizes_give_no_panic() {
+        let pts = vec![
+            Point2::new(f64::NAN, 1.0),
+            Point2::new(1.0, 1.0),
+            Point2::new(1.0, 1.0),
+            Point2::new(1e300, 0.0),
+            Point2::new(f64::INFINITY, 0.0),
+        ];
+        for cell in [0.1, 0.0, -1.0, f64::NAN] {
+            let grid = GridIndex::new(pts.clone(), Some(vec![None; 2]), cell);
+            assert_eq!(grid.len(), 5);
+            let n = grid.nearest_within(&Point2::new(0.0, 1.0), 10.0).unwrap();
+            assert!(n.index == 1 || n.index == 2);
+            assert_eq!(n.distance_m, 1.0);
+            assert!(grid.normal(1).is_none());
+            assert!(grid
+                .nearest_within(&Point2::new(f64::NAN, 0.0), 1.0)
+                .is_none());
+            assert!(grid
+                .nearest_within(&Point2::new(0.0, 0.0), f64::NAN)
+                .is_none());
+            assert!(grid.nearest_within(&Point2::new(1e300, 0.0), 1.0).is_none());
+            let far = grid
+                .nearest_within(&Point2::new(9e6, -9e6), f64::INFINITY)
+                .unwrap();
+            assert!(far.index == 1 || far.index == 2);
+        }
+        let empty = GridIndex::new(Vec::new(), None, 0.1);
+        assert!(empty.is_empty());
+        assert!(empty
+            .nearest_within(&Point2::origin(), f64::INFINITY)
+            .is_none());
+    }
+
+    #[test]
+    fn wide_spread_grows_cells_within_budget() {
+        let pts = vec![Point2::new(-5e6, -5e6), Point2::new(5e6, 5e6)];
+        let grid = GridIndex::new(pts.clone(), None, 0.05);
+        assert!(grid.cell_m() > 0.05);
+        assert!(grid.width * grid.height <= MAX_CELLS);
+        let n = grid
+            .nearest_within(&Point2::new(4e6, 4e6), f64::INFINITY)
+            .unwrap();
+        assert_eq!(n.index, 1);
+    }
+}
