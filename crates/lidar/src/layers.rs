@@ -30,6 +30,7 @@
 pub mod degeneracy;
 pub mod height;
 pub mod layer_map;
+pub mod layer_pf;
 pub mod velocity;
 
 use crate::cloud::{estimate_normals, scan_points};
@@ -385,8 +386,9 @@ impl LayeredIcpSlam {
         (pose, status, fixed.is_some())
     }
 
-    /// A raw match kept along the directions the scan constrains (`information`), if that is
-    /// within the gate around `predicted` at time `t_s`.
+    /// A raw match, if it is within the gate around `predicted` at time `t_s`, kept along the
+    /// directions the scan constrains (`information`). The gate applies to the raw match: a
+    /// match that slid far along an unconstrained direction is not trusted in the others.
     fn accept(
         &self,
         raw: Option<Pose2>,
@@ -395,8 +397,8 @@ impl LayeredIcpSlam {
         t_s: f64,
     ) -> Option<Pose2> {
         let raw = raw?;
-        let kept = remap(predicted, &raw, information, self.config.min_constraint);
-        self.within_gate(predicted, &kept, t_s).then_some(kept)
+        self.within_gate(predicted, &raw, t_s)
+            .then(|| remap(predicted, &raw, information, self.config.min_constraint))
     }
 
     /// True when `pose` is within the gate around `predicted` at time `t_s`.
