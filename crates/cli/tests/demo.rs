@@ -2,8 +2,9 @@
 //! SLAM, checked against the seed work's mean position errors (issue #5: ICP-SLAM / PF-SLAM
 //! small 0.13 / 0.24 m, large 0.29 / 0.33 m, office 0.17 / 0.31 m), and the outputs it
 //! promises. Needs no data set; runs only in release builds (a debug build takes many minutes).
-//! Only `small` is held here: `large` and `office` do not meet their bounds yet (see the
-//! issue's report).
+//! `small` and `large` are held here; `office` does not meet its bounds yet (BENCHMARKS.md,
+//! "Simulated drone": with the 3 m lidar its scans often pin only two of the three pose
+//! directions while the drone turns, and nothing else observes the turn).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers fail loudly
 
 use std::path::Path;
@@ -81,4 +82,13 @@ fn demo_small_within_the_seed_errors_and_writes_every_output() {
     // every image is embedded: one plot per method, two whole maps, one map per layer
     let images = html.matches("src=\"data:image/png;base64,").count();
     assert_eq!(images as u64, 4 + layers);
+}
+
+#[test]
+fn demo_large_within_the_seed_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let Some(report) = demo("large", dir.path()) else {
+        return;
+    };
+    check_bounds(&report, 0.29, 0.33);
 }

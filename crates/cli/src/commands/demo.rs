@@ -2,11 +2,14 @@
 //!
 //! Simulates a flight through a built-in world (seeded, so every run gives the same data) and
 //! runs layered ICP-SLAM on it ([`slamkit_lidar::layers`]: one 2D map per 5 cm height layer,
-//! the layer tracked by the up and down range finders, scans ignored while the drone tilts),
-//! with the drone's drifting odometry as the initial guess, and particle-filter SLAM
-//! ([`slamkit_lidar::rbpf`]) on the same scans in a single 2D map, its height taken from the
-//! layered tracker. Each estimated 3D position is compared with the simulator's ground truth at
-//! the same time.
+//! the layer tracked by the up and down range finders, scans ignored while the drone tilts,
+//! each scan predicted from the drone's recent velocity and its tilt, matches kept only along
+//! the directions the scan constrains), and particle-filter SLAM ([`slamkit_lidar::rbpf`]) on
+//! the same scans in a single 2D map, its height taken from the layered tracker. Neither uses
+//! the drone's simulated optical-flow odometry: its per-scan yaw error exceeds 0.19 rad on 5 %
+//! of the `large` flight's scans, so the particle filter takes its motion from scan-to-scan ICP
+//! (`large`: PF mean error 0.97 m with the odometry, 0.14 m with scan matching). Each
+//! estimated 3D position is compared with the simulator's ground truth at the same time.
 //!
 //! Writes in `--out`: `trajectory.tum`, `groundtruth.tum`, `map.pgm`/`map.yaml`/`map.png` (every
 //! layer's scans in one grid), `maps/layer_NNN.{pgm,yaml,png}` (one grid per height layer),
@@ -125,6 +128,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     let icp = evaluate("icp", "layered ICP-SLAM", &run, &icp_poses)?;
     let pf_config = RbpfConfig {
         seed: args.seed,
+        use_odometry: false,
         ..RbpfConfig::default()
     };
     let pf_started = Instant::now();
@@ -166,6 +170,8 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
             "failed": count(&estimates, |s| matches!(s, LayerScanStatus::Slam(
                 slamkit_lidar::icp_slam::ScanStatus::MatchFailed))),
             "tilted": stats.scans_tilted,
+            "degenerate": stats.scans_degenerate,
+            "rejected": stats.matches_rejected,
         },
         "layers": {
             "count": layer_files.len(),
