@@ -312,14 +312,22 @@ fn cost(pairs: &[Pair], pose: &Pose2, kernel: Kernel) -> f64 {
         .sum()
 }
 
-/// Normal equations `(H, g)` of the robust least-squares problem at `pose` (IRLS weights).
-fn normal_equations(pairs: &[Pair], pose: &Pose2, kernel: Kernel) -> (Matrix3<f64>, Vector3<f64>) {
+/// Normal equations `(H, g)` of the robust least-squares problem at `pose` (IRLS weights), and
+/// the robust cost there (the same sum as [`cost`], taken in the same pass).
+fn normal_equations(
+    pairs: &[Pair],
+    pose: &Pose2,
+    kernel: Kernel,
+) -> (Matrix3<f64>, Vector3<f64>, f64) {
     let mut h = Matrix3::zeros();
     let mut g = Vector3::zeros();
+    let mut cost = 0.0;
     for pair in pairs {
         let q = pose * pair.source;
         let r = residuals(pair, pose);
-        let w = weight(kernel.kind, kernel.scale_m, r.norm());
+        let r_norm = r.norm();
+        cost += rho(kernel.kind, kernel.scale_m, r_norm);
+        let w = weight(kernel.kind, kernel.scale_m, r_norm);
         let rows: [(Vector3<f64>, f64); 2] = match pair.normal {
             Some(n) => [
                 (Vector3::new(n.x, n.y, n.y * q.x - n.x * q.y), r.x),
@@ -335,7 +343,7 @@ fn normal_equations(pairs: &[Pair], pose: &Pose2, kernel: Kernel) -> (Matrix3<f6
             g += w * j * res;
         }
     }
-    (h, g)
+    (h, g, cost)
 }
 
 fn gauss_newton_step(
@@ -343,7 +351,7 @@ fn gauss_newton_step(
     pose: &Pose2,
     kernel: Kernel,
 ) -> Result<Vector3<f64>, LidarError> {
-    let (h, g) = normal_equations(pairs, pose, kernel);
+    let (h, g, _) = normal_equations(pairs, pose, kernel);
     let eig = h.symmetric_eigen().eigenvalues;
     let (lo, hi) = (eig.min(), eig.max());
     if hi.is_nan() || hi <= 0.0 || lo / hi < 1e-10 {
@@ -357,8 +365,7 @@ fn gauss_newton_step(
 /// One Levenberg–Marquardt step: tries growing damping until the robust cost drops; returns a
 /// zero step when no damping helps (the pose is at a minimum for these pairs).
 fn lm_step(pairs: &[Pair], pose: &Pose2, kernel: Kernel, lambda: &mut f64) -> Vector3<f64> {
-    let (h, g) = normal_equations(pairs, pose, kernel);
-    let current = cost(pairs, pose, kernel);
+    let (h, g, current) = normal_equations(pairs, pose, kernel);
     let diag = Matrix3::from_diagonal(&h.diagonal().map(|d| d.max(1e-9)));
     for _ in 0..10 {
         let damped = h + *lambda * diag;

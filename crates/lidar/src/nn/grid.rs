@@ -134,16 +134,16 @@ impl GridIndex {
 
     /// Row-major cell of an indexed point.
     fn cell_of(&self, p: &Point2<f64>) -> Option<usize> {
-        let (i, j) = self.cell_coords(p);
+        let ((i, j), _) = self.cell_coords(p);
         let (i, j) = (usize::try_from(i).ok()?, usize::try_from(j).ok()?);
         (i < self.width && j < self.height).then_some(j * self.width + i)
     }
 
-    /// Cell coordinates of `p` (possibly outside the grid), clamped far from overflow.
-    fn cell_coords(&self, p: &Point2<f64>) -> (i64, i64) {
+    /// Cell coordinates of `p` (possibly outside the grid), clamped far from overflow, and `p`'s
+    /// position in cells from the grid origin.
+    fn cell_coords(&self, p: &Point2<f64>) -> ((i64, i64), Vector2<f64>) {
         let f = (p - self.origin) / self.cell_m;
-        let clamp = |v: f64| v.clamp(-1e12, 1e12).floor() as i64;
-        (clamp(f.x), clamp(f.y))
+        ((floor_clamped(f.x), floor_clamped(f.y)), f)
     }
 
     /// Number of points given (indexed or not).
@@ -194,6 +194,18 @@ impl GridIndex {
     }
 }
 
+/// `v.floor()` as an integer, clamped to ±10¹²: the same value as `floor`, without the library
+/// call it compiles to on baseline x86-64 (a tenth of the query time went there).
+fn floor_clamped(v: f64) -> i64 {
+    let v = v.clamp(-1e12, 1e12);
+    let t = v as i64;
+    if (t as f64) > v {
+        t - 1
+    } else {
+        t
+    }
+}
+
 impl NearestNeighbours for GridIndex {
     fn nearest_within(&self, query: &Point2<f64>, max_dist_m: f64) -> Option<Neighbour> {
         let far = |v: f64| v.is_nan() || v.abs() > MAX_COORDINATE_M;
@@ -203,8 +215,7 @@ impl NearestNeighbours for GridIndex {
         if max_dist_m.is_nan() || max_dist_m < 0.0 {
             return None;
         }
-        let (ci, cj) = self.cell_coords(query);
-        let f = (query - self.origin) / self.cell_m;
+        let ((ci, cj), f) = self.cell_coords(query);
         let (fx, fy) = (f.x - ci as f64, f.y - cj as f64);
         // Distance (in cells) from the query to the border of its own cell.
         let inner = fx.min(1.0 - fx).min(fy).min(1.0 - fy).max(0.0);
@@ -366,6 +377,25 @@ mod tests {
         assert!(empty
             .nearest_within(&Point2::origin(), f64::INFINITY)
             .is_none());
+    }
+
+    #[test]
+    fn floor_matches_the_library() {
+        for v in [
+            -2.5,
+            -2.0,
+            -1e-300,
+            -0.0,
+            0.0,
+            0.7,
+            3.0,
+            1e11 + 0.5,
+            -1e11 - 0.5,
+        ] {
+            assert_eq!(floor_clamped(v), v.floor() as i64, "{v}");
+        }
+        assert_eq!(floor_clamped(f64::NAN), 0);
+        assert_eq!(floor_clamped(1e300), 1_000_000_000_000);
     }
 
     #[test]
