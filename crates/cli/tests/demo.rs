@@ -79,9 +79,19 @@ fn demo_small_within_the_seed_errors_and_writes_every_output() {
     let layers = report["layers"]["count"].as_u64().unwrap();
     assert!(layers >= 2, "the flight crosses height layers: {layers}");
     let html = std::fs::read_to_string(dir.path().join("report.html")).unwrap();
-    // every image is embedded: one plot per method, two whole maps, one map per layer
+    // every image is embedded: one error plot per method (errors_*.png), two whole maps, one
+    // map per layer
+    let plots = std::fs::read_dir(dir.path())
+        .unwrap()
+        .filter(|e| {
+            let name = e.as_ref().unwrap().file_name();
+            let name = name.to_string_lossy();
+            name.starts_with("errors_") && name.ends_with(".png")
+        })
+        .count();
+    assert!(plots >= 2, "{plots} error plots");
     let images = html.matches("src=\"data:image/png;base64,").count();
-    assert_eq!(images as u64, 4 + layers);
+    assert_eq!(images, plots + 2 + layers as usize);
 }
 
 #[test]
