@@ -7,7 +7,8 @@
 //! Nodes are poses `world_from_node`; an edge holds a measured `from_from_to` with its
 //! information matrix. Each Gauss–Newton step solves the block-sparse normal equations by
 //! eliminating nodes one at a time in minimum-degree order (variable elimination, i.e. a sparse
-//! block LDLᵀ factorisation), which keeps the fill-in small on the near-planar graphs a robot
+//! block LDLᵀ factorisation; the order and fill-in are worked out once per optimisation and
+//! reused by every iteration), which keeps the fill-in small on the near-planar graphs a robot
 //! builds. Edges may carry a Cauchy kernel (iteratively reweighted), so a wrong loop closure
 //! pulls with bounded force. The first node is held fixed.
 
@@ -93,9 +94,10 @@ impl PoseGraph {
     pub fn optimize(&mut self, max_iterations: usize, tolerance: f64) -> OptimizeSummary {
         let initial_cost = self.cost();
         let mut iterations = 0;
+        let elimination = Elimination::new(self.nodes.len(), &self.edges);
         while iterations < max_iterations && self.nodes.len() > 1 {
             iterations += 1;
-            let Some(step) = self.solve_step() else {
+            let Some(step) = self.solve_step(&elimination) else {
                 break;
             };
             let mut largest: f64 = 0.0;
@@ -128,12 +130,11 @@ impl PoseGraph {
     }
 
     /// Builds and solves the normal equations at the current poses; `None` when singular.
-    fn solve_step(&self) -> Option<Vec<Vector3<f64>>> {
-        let n = self.nodes.len();
-        let mut system = BlockSystem::new(n);
+    fn solve_step(&self, elimination: &Elimination) -> Option<Vec<Vector3<f64>>> {
+        let mut system = BlockSystem::new(elimination);
         // Hold the first node: a stiff prior on its increment.
         system.add_diag(0, Matrix3::identity() * 1e12, Vector3::zeros());
-        for e in &self.edges {
+        for (i, e) in self.edges.iter().enumerate() {
             let (Some(a), Some(b)) = (self.nodes.get(e.from), self.nodes.get(e.to)) else {
                 continue;
             };
@@ -151,7 +152,7 @@ impl PoseGraph {
                 jb.transpose() * omega * jb,
                 jb.transpose() * omega * r,
             );
-            system.add_off(e.from, e.to, ja.transpose() * omega * jb);
+            system.add_off(i, ja.transpose() * omega * jb);
         }
         system.solve().map(|x| x.into_iter().map(|d| -d).collect())
     }
@@ -223,20 +224,114 @@ fn wrap(a: f64) -> f64 {
     }
 }
 
-/// Symmetric block-sparse normal equations `H x = g` with 3×3 blocks.
-struct BlockSystem {
-    diag: Vec<Matrix3<f64>>,
-    rhs: Vec<Vector3<f64>>,
-    /// `off[i][j]` = block `H_ij` for `i ≠ j`, stored in both directions.
-    off: Vec<BTreeMap<usize, Matrix3<f64>>>,
+/// The elimination of the block-sparse normal equations of a fixed graph, worked out once per
+/// optimisation (a symbolic factorisation): the order, minimum degree first, and for each step
+/// the blocks it reads and the blocks it updates, fill-in included. Every Gauss–Newton iteration
+/// then runs the same arithmetic on flat block arrays, without any map look-up.
+struct Elimination {
+    /// Number of nodes.
+    nodes: usize,
+    /// Number of off-diagonal blocks (ordered pairs, fill-in included).
+    blocks: usize,
+    /// Blocks `(from, to)` and `(to, from)` of each edge.
+    edge_blocks: Vec<(usize, usize)>,
+    steps: Vec<Step>,
 }
 
-impl BlockSystem {
-    fn new(n: usize) -> Self {
+/// Elimination of one node.
+struct Step {
+    node: usize,
+    /// The node's remaining neighbours in ascending order, with the block `(node, neighbour)`.
+    row: Vec<(usize, usize)>,
+    /// For neighbours `a` (outer) and `b` (inner) of `row`: the block `(a, b)` the step updates
+    /// (unused where `a == b`, which updates `a`'s diagonal block).
+    updates: Vec<usize>,
+}
+
+impl Elimination {
+    fn new(nodes: usize, edges: &[Edge]) -> Self {
+        // rows[i][j] = index of block (i, j).
+        let mut rows: Vec<BTreeMap<usize, usize>> = vec![BTreeMap::new(); nodes];
+        let mut blocks = 0;
+        let mut block = |rows: &mut Vec<BTreeMap<usize, usize>>, i: usize, j: usize| {
+            rows.get_mut(i)
+                .map(|row| {
+                    *row.entry(j).or_insert_with(|| {
+                        blocks += 1;
+                        blocks - 1
+                    })
+                })
+                .unwrap_or(usize::MAX)
+        };
+        let edge_blocks = edges
+            .iter()
+            .map(|e| {
+                (
+                    block(&mut rows, e.from, e.to),
+                    block(&mut rows, e.to, e.from),
+                )
+            })
+            .collect();
+        let mut queue: BTreeSet<(usize, usize)> =
+            rows.iter().enumerate().map(|(i, r)| (r.len(), i)).collect();
+        let mut steps = Vec::with_capacity(nodes);
+        while let Some((_, k)) = queue.pop_first() {
+            let row: Vec<(usize, usize)> = rows
+                .get_mut(k)
+                .map(std::mem::take)
+                .unwrap_or_default()
+                .into_iter()
+                .collect();
+            let mut updates = Vec::with_capacity(row.len() * row.len());
+            for &(a, _) in &row {
+                let old_degree = rows.get(a).map_or(0, BTreeMap::len);
+                if let Some(r) = rows.get_mut(a) {
+                    r.remove(&k);
+                }
+                for &(b, _) in &row {
+                    updates.push(if a == b {
+                        usize::MAX
+                    } else {
+                        block(&mut rows, a, b)
+                    });
+                }
+                let new_degree = rows.get(a).map_or(0, BTreeMap::len);
+                if queue.remove(&(old_degree, a)) {
+                    queue.insert((new_degree, a));
+                }
+            }
+            steps.push(Step {
+                node: k,
+                row,
+                updates,
+            });
+        }
         Self {
-            diag: vec![Matrix3::zeros(); n],
-            rhs: vec![Vector3::zeros(); n],
-            off: vec![BTreeMap::new(); n],
+            nodes,
+            blocks,
+            edge_blocks,
+            steps,
+        }
+    }
+}
+
+/// Symmetric block-sparse normal equations `H x = g` with 3×3 blocks, laid out by an
+/// [`Elimination`].
+struct BlockSystem<'a> {
+    elimination: &'a Elimination,
+    diag: Vec<Matrix3<f64>>,
+    rhs: Vec<Vector3<f64>>,
+    /// Off-diagonal blocks `H_ij`, `i ≠ j`, stored in both directions.
+    off: Vec<Matrix3<f64>>,
+}
+
+impl<'a> BlockSystem<'a> {
+    fn new(elimination: &'a Elimination) -> Self {
+        Self {
+            elimination,
+            diag: vec![Matrix3::zeros(); elimination.nodes],
+            rhs: vec![Vector3::zeros(); elimination.nodes],
+            off: vec![Matrix3::zeros(); elimination.blocks],
         }
     }
 
@@ -247,53 +342,50 @@ impl BlockSystem {
         }
     }
 
-    fn add_off(&mut self, i: usize, j: usize, h_ij: Matrix3<f64>) {
-        if let Some(row) = self.off.get_mut(i) {
-            *row.entry(j).or_insert_with(Matrix3::zeros) += h_ij;
+    /// Adds `h_ij` to the off-diagonal blocks of edge `edge` (and its transpose to the other).
+    fn add_off(&mut self, edge: usize, h_ij: Matrix3<f64>) {
+        let Some(&(ij, ji)) = self.elimination.edge_blocks.get(edge) else {
+            return;
+        };
+        if let Some(b) = self.off.get_mut(ij) {
+            *b += h_ij;
         }
-        if let Some(row) = self.off.get_mut(j) {
-            *row.entry(i).or_insert_with(Matrix3::zeros) += h_ij.transpose();
+        if let Some(b) = self.off.get_mut(ji) {
+            *b += h_ij.transpose();
         }
     }
 
-    /// Solves by block elimination in minimum-degree order, then back substitution.
+    /// Solves by block elimination in the precomputed order, then back substitution.
     fn solve(mut self) -> Option<Vec<Vector3<f64>>> {
-        let n = self.diag.len();
-        let mut queue: BTreeSet<(usize, usize)> = (0..n).map(|i| (self.off[i].len(), i)).collect();
-        // Per eliminated node: D⁻¹, its remaining neighbours' blocks H_kj, and its rhs.
-        let mut eliminated = Vec::with_capacity(n);
-        while let Some((_, k)) = queue.pop_first() {
-            let d_inv = self.diag.get(k)?.try_inverse()?;
-            let row = std::mem::take(self.off.get_mut(k)?);
-            let g_k = *self.rhs.get(k)?;
-            for (&a, h_ka) in &row {
-                let h_ak = h_ka.transpose();
-                let h_ak_dinv = h_ak * d_inv;
-                let old_degree = self.off.get(a)?.len();
-                let a_row = self.off.get_mut(a)?;
-                a_row.remove(&k);
-                for (&b, h_kb) in &row {
-                    let update = h_ak_dinv * h_kb;
-                    if a == b {
-                        *self.diag.get_mut(a)? -= update;
+        let steps = &self.elimination.steps;
+        // Per step: D⁻¹ and the rhs at elimination.
+        let mut eliminated = Vec::with_capacity(steps.len());
+        for step in steps {
+            let d_inv = self.diag.get(step.node)?.try_inverse()?;
+            let g_k = *self.rhs.get(step.node)?;
+            let m = step.row.len();
+            for (ai, &(a, ka)) in step.row.iter().enumerate() {
+                let h_ak_dinv = self.off.get(ka)?.transpose() * d_inv;
+                for (bi, &(b, kb)) in step.row.iter().enumerate() {
+                    let update = h_ak_dinv * self.off.get(kb)?;
+                    let target = if a == b {
+                        self.diag.get_mut(a)?
                     } else {
-                        *a_row.entry(b).or_insert_with(Matrix3::zeros) -= update;
-                    }
+                        self.off.get_mut(*step.updates.get(ai * m + bi)?)?
+                    };
+                    *target -= update;
                 }
                 *self.rhs.get_mut(a)? -= h_ak_dinv * g_k;
-                let new_degree = self.off.get(a)?.len();
-                if queue.remove(&(old_degree, a)) {
-                    queue.insert((new_degree, a));
-                }
             }
-            eliminated.push((k, d_inv, row, g_k));
+            eliminated.push((d_inv, g_k));
         }
-        let mut x = vec![Vector3::zeros(); n];
-        for (k, d_inv, row, g_k) in eliminated.into_iter().rev() {
-            let coupled = row.iter().fold(g_k, |acc, (&j, h_kj)| {
-                acc - h_kj * x.get(j).copied().unwrap_or_default()
-            });
-            *x.get_mut(k)? = d_inv * coupled;
+        let mut x = vec![Vector3::zeros(); self.elimination.nodes];
+        for (step, (d_inv, g_k)) in steps.iter().zip(eliminated).rev() {
+            let mut coupled = g_k;
+            for &(j, kj) in &step.row {
+                coupled -= self.off.get(kj)? * x.get(j).copied().unwrap_or_default();
+            }
+            *x.get_mut(step.node)? = d_inv * coupled;
         }
         x.iter()
             .all(|v| v.iter().all(|c| c.is_finite()))
@@ -372,7 +464,8 @@ mod tests {
     #[test]
     fn elimination_matches_a_dense_solve() {
         let (_, graph) = drifting_square(5);
-        let sparse = graph.solve_step().unwrap();
+        let elimination = Elimination::new(graph.nodes().len(), graph.edges());
+        let sparse = graph.solve_step(&elimination).unwrap();
         let n = graph.nodes().len();
         let mut h = nalgebra::DMatrix::<f64>::zeros(3 * n, 3 * n);
         let mut g = nalgebra::DVector::<f64>::zeros(3 * n);
