@@ -10,9 +10,9 @@
 use std::path::Path;
 use std::process::Command;
 
-/// Runs the demo on `world` into a fresh folder and returns its report, or `None` in debug
-/// builds.
-fn demo(world: &str, out: &Path) -> Option<serde_json::Value> {
+/// Runs the demo on `world` into a fresh folder, checks the mean errors against the bounds
+/// `[icp, pf]` (see [`check_bounds`]) and returns its report, or `None` in debug builds.
+fn demo(world: &str, out: &Path, bounds_m: [f64; 2]) -> Option<serde_json::Value> {
     if cfg!(debug_assertions) {
         eprintln!("skipped: demo {world}: run with --release");
         return None;
@@ -31,7 +31,9 @@ fn demo(world: &str, out: &Path) -> Option<serde_json::Value> {
     // the table of errors
     assert!(stdout.contains("layered ICP-SLAM") && stdout.contains("particle-filter SLAM"));
     let text = std::fs::read_to_string(out.join("report.json")).unwrap();
-    Some(serde_json::from_str(&text).unwrap())
+    let report = serde_json::from_str(&text).unwrap();
+    check_bounds(&report, bounds_m[0], bounds_m[1]);
+    Some(report)
 }
 
 fn metric(report: &serde_json::Value, method: &str, name: &str) -> f64 {
@@ -54,10 +56,9 @@ fn check_bounds(report: &serde_json::Value, icp_mean_m: f64, pf_mean_m: f64) {
 #[test]
 fn demo_small_within_the_seed_errors_and_writes_every_output() {
     let dir = tempfile::tempdir().unwrap();
-    let Some(report) = demo("small", dir.path()) else {
+    let Some(report) = demo("small", dir.path(), [0.13, 0.24]) else {
         return;
     };
-    check_bounds(&report, 0.13, 0.24);
     for file in [
         "report.html",
         "trajectory.tum",
@@ -96,9 +97,5 @@ fn demo_small_within_the_seed_errors_and_writes_every_output() {
 
 #[test]
 fn demo_large_within_the_seed_errors() {
-    let dir = tempfile::tempdir().unwrap();
-    let Some(report) = demo("large", dir.path()) else {
-        return;
-    };
-    check_bounds(&report, 0.29, 0.33);
+    demo("large", tempfile::tempdir().unwrap().path(), [0.29, 0.33]);
 }
