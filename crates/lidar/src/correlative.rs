@@ -140,24 +140,33 @@ impl Field {
             .map_or(0.0, |v| f64::from(*v))
     }
 
-    /// Cell `(i, j)` of the result holds the maximum over cells `[i, i+w) × [j, j+w)`.
+    /// Cell `(i, j)` of the result holds the maximum over cells `[i, i+w) × [j, j+w)`: a pass
+    /// along rows, then one along columns. Field values are never NaN, so a plain comparison
+    /// gives the maximum (and is much cheaper than NaN-aware `f32::max`).
     fn sliding_max(&self, w: usize) -> Self {
-        let mut rows = self.cells.clone();
-        for j in 0..self.height {
-            for i in 0..self.width {
-                let end = (i + w).min(self.width);
-                rows[j * self.width + i] = self.cells[j * self.width + i..j * self.width + end]
-                    .iter()
-                    .fold(0.0, |a: f32, b| a.max(*b));
+        let width = self.width.max(1);
+        let w = w.max(1);
+        let mut rows = vec![0.0f32; self.cells.len()];
+        for (src, dst) in self.cells.chunks(width).zip(rows.chunks_mut(width)) {
+            for (i, out) in dst.iter_mut().enumerate() {
+                *out = window_max(src.get(i..(i + w).min(src.len())).unwrap_or_default());
             }
         }
+        // Columns: running maximum of `w` consecutive rows.
         let mut cells = rows.clone();
         for j in 0..self.height {
-            for i in 0..self.width {
-                let end = (j + w).min(self.height);
-                cells[j * self.width + i] = (j..end)
-                    .map(|jj| rows[jj * self.width + i])
-                    .fold(0.0, f32::max);
+            let Some(out) = cells.get_mut(j * width..(j + 1) * width) else {
+                continue;
+            };
+            for jj in j + 1..(j + w).min(self.height) {
+                let Some(next) = rows.get(jj * width..(jj + 1) * width) else {
+                    continue;
+                };
+                for (o, v) in out.iter_mut().zip(next) {
+                    if *v > *o {
+                        *o = *v;
+                    }
+                }
             }
         }
         Self {
@@ -176,17 +185,15 @@ impl Field {
             && footprint.min.1 + dj >= 0
             && footprint.max.0 + di < w
             && footprint.max.1 + dj < h;
-        if inside && footprint.width == w {
-            let shift = dj * w + di;
+        let corner = usize::try_from((footprint.min.1 + dj) * w + footprint.min.0 + di);
+        if let (true, true, Ok(corner)) = (inside, footprint.width == w, corner) {
+            let Some(window) = self.cells.get(corner..) else {
+                return 0.0;
+            };
             footprint
-                .linear
+                .relative
                 .iter()
-                .map(|&k| {
-                    usize::try_from(k + shift)
-                        .ok()
-                        .and_then(|k| self.cells.get(k))
-                        .map_or(0.0, |v| f64::from(*v))
-                })
+                .map(|&k| window.get(k).map_or(0.0, |v| f64::from(*v)))
                 .sum()
         } else {
             footprint
@@ -198,11 +205,18 @@ impl Field {
     }
 }
 
+/// Largest of `values` (non-negative, never NaN), 0 for none.
+fn window_max(values: &[f32]) -> f32 {
+    values
+        .iter()
+        .fold(0.0, |m: f32, &v| if v > m { v } else { m })
+}
+
 /// The cells of the source points at one rotation, with their bounding box and their linear
-/// offsets in a grid `width` cells wide.
+/// offsets from its corner in a grid `width` cells wide.
 struct Footprint {
     cells: Vec<(i64, i64)>,
-    linear: Vec<i64>,
+    relative: Vec<usize>,
     width: i64,
     min: (i64, i64),
     max: (i64, i64),
@@ -218,10 +232,13 @@ impl Footprint {
         };
         let min = fold((i64::MAX, i64::MAX), i64::min);
         let max = fold((i64::MIN, i64::MIN), i64::max);
-        let linear = cells.iter().map(|&(i, j)| j * width + i).collect();
+        let relative = cells
+            .iter()
+            .map(|&(i, j)| usize::try_from((j - min.1) * width + i - min.0).unwrap_or(usize::MAX))
+            .collect();
         Self {
             cells,
-            linear,
+            relative,
             width,
             min,
             max,

@@ -7,11 +7,11 @@
 //! pass out of the current match), or every keyframe ever inserted (MRPT icp-slam's global point
 //! map, which re-anchors the robot on its old map when it comes back with little drift).
 
-use crate::cloud::voxel_key;
+use crate::cloud::{voxel_key, VoxelMap};
 use crate::nn::GridIndex;
 use nalgebra::{Point2, Vector2};
 use slamkit_core::Pose2;
-use std::collections::{HashMap, VecDeque};
+use std::collections::VecDeque;
 
 /// Side of the nearest-neighbour grid's cells in map voxels: with one point per voxel a cell
 /// holds a few points of a wall, and a query near a wall reads about nine cells.
@@ -33,7 +33,7 @@ pub struct KeyframeMap {
     voxel_m: f64,
     max_keyframes: usize,
     window: VecDeque<Keyframe>,
-    voxels: HashMap<(i64, i64), usize>,
+    voxels: VoxelMap<usize>,
     points: Vec<Point2<f64>>,
     normals: Vec<Option<Vector2<f64>>>,
     index: GridIndex,
@@ -48,7 +48,7 @@ impl KeyframeMap {
             voxel_m,
             max_keyframes,
             window: VecDeque::new(),
-            voxels: HashMap::new(),
+            voxels: VoxelMap::default(),
             points: Vec::new(),
             normals: Vec::new(),
             index: GridIndex::new(Vec::new(), None, voxel_m * GRID_CELL_VOXELS),
