@@ -14,6 +14,10 @@
 //!   "OctoMap", Autonomous Robots 34(3), 2013).
 //!
 //! NaN points, points beyond `max_range_m` and points off the grid are skipped and counted.
+//!
+//! [`depth_points`] turns a depth image into such points (every `step`-th pixel, back-projected
+//! with the pinhole intrinsics and moved by `map_from_camera`), and [`FloorGrid::insert_depth`]
+//! inserts one depth frame seen from that camera pose.
 
 use crate::error::MapError;
 use crate::occupancy_grid::Occupancy;
@@ -21,6 +25,9 @@ use crate::raycast::bresenham;
 use crate::tri_grid::TriGrid;
 use nalgebra::{Point2, Point3};
 use serde::{Deserialize, Serialize};
+use slamkit_core::camera::Intrinsics;
+use slamkit_core::image::Image;
+use slamkit_core::Pose3;
 
 /// Settings of the floor grid.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -172,6 +179,19 @@ impl FloorGrid {
         stats
     }
 
+    /// Adds one depth frame (metres, 0 or NaN where unknown; pinhole `intrinsics`) taken by a
+    /// camera at `map_from_camera`, every `step`-th pixel in both directions (0 counts as 1).
+    pub fn insert_depth(
+        &mut self,
+        depth_m: &Image<f32>,
+        intrinsics: &Intrinsics,
+        map_from_camera: &Pose3,
+        step: usize,
+    ) -> FloorInsertStats {
+        let points = depth_points(depth_m, intrinsics, map_from_camera, step);
+        self.insert_cloud(&points, &Point3::from(map_from_camera.translation.vector))
+    }
+
     /// Marks the cells from `from` to `to` crossed (including `to` when `include_end`).
     fn trace(
         &mut self,
@@ -233,6 +253,32 @@ impl FloorGrid {
         }
         grid
     }
+}
+
+/// The map-frame points of every `step`-th pixel (rows and columns; 0 counts as 1) of a depth
+/// image with a positive finite depth: back-projected through `intrinsics`, then moved by
+/// `map_from_camera`.
+pub fn depth_points(
+    depth_m: &Image<f32>,
+    intrinsics: &Intrinsics,
+    map_from_camera: &Pose3,
+    step: usize,
+) -> Vec<Point3<f64>> {
+    let step = step.max(1);
+    let mut points = Vec::new();
+    for v in (0..depth_m.height()).step_by(step) {
+        let Some(row) = depth_m.row(v) else { continue };
+        for (u, &z) in row.iter().enumerate().step_by(step) {
+            let z = f64::from(z);
+            if !(z.is_finite() && z > 0.0) {
+                continue;
+            }
+            let x = (u as f64 - intrinsics.cx) / intrinsics.fx * z;
+            let y = (v as f64 - intrinsics.cy) / intrinsics.fy * z;
+            points.push(map_from_camera * Point3::new(x, y, z));
+        }
+    }
+    points
 }
 
 fn validate(
@@ -405,5 +451,58 @@ mod tests {
         };
         assert!(FloorGrid::new(10, 10, Point2::origin(), bad).is_err());
         assert!(FloorGrid::new(0, 10, Point2::origin(), FloorGridConfig::default()).is_err());
+    }
+
+    /// A 64 × 48 depth frame from a camera 0.5 m above the floor at (x, z) = (0, 0) looking
+    /// along +z at a wall at z = 2.05 m, the floor nearer than the wall in the bottom rows, one
+    /// hole and one NaN pixel.
+    fn wall_depth_frame() -> (Image<f32>, Intrinsics, Pose3) {
+        let k = Intrinsics::from_array([40.0, 40.0, 31.5, 23.5], 64, 48);
+        let mut depth = Image::filled(64, 48, 0.0f32);
+        for v in 0..48 {
+            for u in 0..64 {
+                let below = v as f64 - k.cy;
+                let floor_z = if below > 0.0 {
+                    0.5 * k.fy / below
+                } else {
+                    f64::INFINITY
+                };
+                *depth.get_mut(u, v).unwrap() = floor_z.min(2.05) as f32;
+            }
+        }
+        *depth.get_mut(3, 20).unwrap() = 0.0;
+        *depth.get_mut(4, 20).unwrap() = f32::NAN;
+        (depth, k, Pose3::translation(0.0, -0.5, 0.0))
+    }
+
+    #[test]
+    fn a_depth_frame_of_a_wall_marks_the_wall_and_frees_the_floor_before_it() {
+        let (depth, k, map_from_camera) = wall_depth_frame();
+        let points = depth_points(&depth, &k, &map_from_camera, 1);
+        assert_eq!(points.len(), 64 * 48 - 2);
+        let mut g =
+            FloorGrid::new(40, 40, Point2::new(-2.0, -1.0), FloorGridConfig::default()).unwrap();
+        let stats = g.insert_depth(&depth, &k, &map_from_camera, 1);
+        // band 0.1-1.0 m on the wall: image rows 14..=31 (row 20 has the two bad pixels)
+        assert_eq!(stats.obstacle_points, 18 * 64 - 2);
+        assert_eq!(stats.skipped_points, 0);
+        let t = g.to_tri_grid(FloorGridMethod::LogOdds);
+        // the wall spans x = ±2.05 · 31.5 / 40 = ±1.61 m: columns 4..=35 at row 30
+        for x in 4..=35 {
+            assert_eq!(
+                t.get(x, 30),
+                Some(Occupancy::Occupied),
+                "wall at column {x}"
+            );
+        }
+        assert_eq!(t.get(2, 30), Some(Occupancy::Unknown));
+        // from the camera's cell (20, 10) to the wall: free; behind the wall: unknown
+        for y in 10..30 {
+            assert_eq!(t.get(20, y), Some(Occupancy::Free), "row {y}");
+        }
+        assert_eq!(t.get(20, 31), Some(Occupancy::Unknown));
+        // every other pixel: a quarter of the points
+        let sparse = depth_points(&depth, &k, &map_from_camera, 2);
+        assert_eq!(sparse.len(), 32 * 24 - 1);
     }
 }
