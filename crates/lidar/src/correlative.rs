@@ -176,34 +176,65 @@ impl Field {
         }
     }
 
-    /// Sum of the field under the footprint's cells shifted by `(di, dj)`. When the shifted
-    /// footprint lies inside the grid (the usual case) the cells are read by linear offset
-    /// without per-cell range checks; the sum, taken in the same order, is the same.
-    fn score(&self, footprint: &Footprint, di: i64, dj: i64) -> f64 {
+    /// The cells from the corner of the footprint shifted by `(di, dj)`, when the shifted
+    /// footprint lies inside the grid (the usual case): its cells are then read by offset from
+    /// there, without per-cell range checks.
+    fn window(&self, footprint: &Footprint, di: i64, dj: i64) -> Option<&[f32]> {
         let (w, h) = (self.width as i64, self.height as i64);
         let inside = footprint.min.0 + di >= 0
             && footprint.min.1 + dj >= 0
             && footprint.max.0 + di < w
-            && footprint.max.1 + dj < h;
-        let corner = usize::try_from((footprint.min.1 + dj) * w + footprint.min.0 + di);
-        if let (true, true, Ok(corner)) = (inside, footprint.width == w, corner) {
-            let Some(window) = self.cells.get(corner..) else {
-                return 0.0;
-            };
-            footprint
+            && footprint.max.1 + dj < h
+            && footprint.width == w;
+        let corner = usize::try_from((footprint.min.1 + dj) * w + footprint.min.0 + di).ok()?;
+        inside.then(|| self.cells.get(corner..)).flatten()
+    }
+
+    /// Sum of the field under the footprint's cells shifted by `(di, dj)`, in footprint order.
+    fn score(&self, footprint: &Footprint, di: i64, dj: i64) -> f64 {
+        match self.window(footprint, di, dj) {
+            Some(window) => footprint
                 .relative
                 .iter()
                 .map(|&k| window.get(k).map_or(0.0, |v| f64::from(*v)))
-                .sum()
-        } else {
-            footprint
+                .sum(),
+            None => footprint
                 .cells
                 .iter()
                 .map(|&(i, j)| self.value(i + di, j + dj))
-                .sum()
+                .sum(),
         }
     }
+
+    /// [`Field::score`] at `(di, dj)` for each `dj` of `djs` (at most [`LANES`]; the rest of
+    /// the result is 0). Each sum is taken in the same order, so the values are the same, but
+    /// side by side: one sum alone is a chain of dependent additions, four overlap.
+    fn score_lanes(&self, footprint: &Footprint, di: i64, djs: &[i64]) -> [f64; LANES] {
+        let mut out = [0.0; LANES];
+        let window = |dj: i64| self.window(footprint, di, dj);
+        if let &[d0, d1, d2, d3] = djs {
+            if let (Some(w0), Some(w1), Some(w2), Some(w3)) =
+                (window(d0), window(d1), window(d2), window(d3))
+            {
+                let read = |w: &[f32], k: usize| w.get(k).map_or(0.0, |v| f64::from(*v));
+                for &k in &footprint.relative {
+                    out[0] += read(w0, k);
+                    out[1] += read(w1, k);
+                    out[2] += read(w2, k);
+                    out[3] += read(w3, k);
+                }
+                return out;
+            }
+        }
+        for (o, &dj) in out.iter_mut().zip(djs) {
+            *o = self.score(footprint, di, dj);
+        }
+        out
+    }
 }
+
+/// Translations scored together by [`Field::score_lanes`].
+const LANES: usize = 4;
 
 /// Largest of `values` (non-negative, never NaN), 0 for none.
 fn window_max(values: &[f32]) -> f32 {
@@ -297,40 +328,8 @@ pub fn correlative_match(
 
     let w = (config.linear_window_m / res).ceil() as i64;
     let starts: Vec<i64> = (-w..=w).step_by(coarse).collect();
-    let mut blocks: Vec<Block> = Vec::with_capacity(angles.len() * starts.len().pow(2));
-    for (angle, cells) in rotated.iter().enumerate() {
-        for &di in &starts {
-            for &dj in &starts {
-                let bound = bound_field.score(cells, di, dj);
-                blocks.push(Block {
-                    bound,
-                    angle,
-                    di,
-                    dj,
-                });
-            }
-        }
-    }
-    blocks.sort_by(|a, b| b.bound.total_cmp(&a.bound));
-
-    let mut best = (f64::NEG_INFINITY, n_ang as usize, 0, 0);
-    let c = coarse as i64;
-    for block in &blocks {
-        if block.bound <= best.0 {
-            break;
-        }
-        let Some(cells) = rotated.get(block.angle) else {
-            continue;
-        };
-        for di in block.di..(block.di + c).min(w + 1) {
-            for dj in block.dj..(block.dj + c).min(w + 1) {
-                let s = field.score(cells, di, dj);
-                if s > best.0 {
-                    best = (s, block.angle, di, dj);
-                }
-            }
-        }
-    }
+    let blocks = bound_blocks(&bound_field, &rotated, &starts);
+    let best = best_in_blocks(&field, &rotated, &blocks, coarse as i64, w, n_ang as usize);
     let (score, angle, di, dj) = best;
     let theta = angles.get(angle).copied().unwrap_or(theta0);
     let t = initial.translation.vector + Vector2::new(di as f64, dj as f64) * res;
@@ -338,6 +337,63 @@ pub fn correlative_match(
         target_from_source: Pose2::new(t, theta),
         score: score.max(0.0) / source.len() as f64,
     })
+}
+
+/// Every block of translations (starting at `starts` in both axes) at every rotation, with its
+/// bound, best bound first.
+fn bound_blocks(bound_field: &Field, rotated: &[Footprint], starts: &[i64]) -> Vec<Block> {
+    let mut blocks: Vec<Block> = Vec::with_capacity(rotated.len() * starts.len().pow(2));
+    for (angle, cells) in rotated.iter().enumerate() {
+        for &di in starts {
+            for djs in starts.chunks(LANES) {
+                let bounds = bound_field.score_lanes(cells, di, djs);
+                for (&dj, &bound) in djs.iter().zip(&bounds) {
+                    blocks.push(Block {
+                        bound,
+                        angle,
+                        di,
+                        dj,
+                    });
+                }
+            }
+        }
+    }
+    blocks.sort_by(|a, b| b.bound.total_cmp(&a.bound));
+    blocks
+}
+
+/// Scores every translation of the blocks, best bound first, until no bound beats the best
+/// score: `(score, angle, di, dj)` of the best (the first found among equals). Translations run
+/// up to `w` cells; `centre_angle` is reported when nothing scores.
+fn best_in_blocks(
+    field: &Field,
+    rotated: &[Footprint],
+    blocks: &[Block],
+    coarse: i64,
+    w: i64,
+    centre_angle: usize,
+) -> (f64, usize, i64, i64) {
+    let mut best = (f64::NEG_INFINITY, centre_angle, 0, 0);
+    for block in blocks {
+        if block.bound <= best.0 {
+            break;
+        }
+        let Some(cells) = rotated.get(block.angle) else {
+            continue;
+        };
+        let djs: Vec<i64> = (block.dj..(block.dj + coarse).min(w + 1)).collect();
+        for di in block.di..(block.di + coarse).min(w + 1) {
+            for chunk in djs.chunks(LANES) {
+                let scores = field.score_lanes(cells, di, chunk);
+                for (&dj, &s) in chunk.iter().zip(&scores) {
+                    if s > best.0 {
+                        best = (s, block.angle, di, dj);
+                    }
+                }
+            }
+        }
+    }
+    best
 }
 
 fn validate(config: &CorrelativeConfig) -> Result<(), LidarError> {
