@@ -117,17 +117,13 @@ impl KeyframeMap {
 
     /// Adds the keyframe's points whose voxel is still empty.
     fn add_points(&mut self, kf: &Keyframe) {
-        for (p, n) in kf.points.iter().zip(&kf.normals) {
-            let world = kf.world_from_base * p;
-            let key = voxel_key(&world, self.voxel_m);
-            if self.voxels.contains_key(&key) {
-                continue;
-            }
-            self.voxels.insert(key, self.points.len());
-            self.points.push(world);
-            self.normals
-                .push(n.map(|n| kf.world_from_base.rotation * n));
-        }
+        add_keyframe_points(
+            kf,
+            self.voxel_m,
+            &mut self.voxels,
+            &mut self.points,
+            &mut self.normals,
+        );
     }
 
     /// The indexed map points (world frame) with their normals.
@@ -149,6 +145,39 @@ impl KeyframeMap {
     pub fn is_empty(&self) -> bool {
         self.points.is_empty()
     }
+}
+
+/// Adds the points of `kf` (world frame) whose voxel of side `voxel_m` is not in `voxels` yet,
+/// with their normals turned into the world frame.
+fn add_keyframe_points(
+    kf: &Keyframe,
+    voxel_m: f64,
+    voxels: &mut VoxelMap<usize>,
+    points: &mut Vec<Point2<f64>>,
+    normals: &mut Vec<Option<Vector2<f64>>>,
+) {
+    for (p, n) in kf.points.iter().zip(&kf.normals) {
+        let world = kf.world_from_base * p;
+        let key = voxel_key(&world, voxel_m);
+        if voxels.contains_key(&key) {
+            continue;
+        }
+        voxels.insert(key, points.len());
+        points.push(world);
+        normals.push(n.map(|n| kf.world_from_base.rotation * n));
+    }
+}
+
+/// The points of `keyframes`, in order, thinned and indexed as a [`KeyframeMap`] holding all of
+/// them would (same points, same order), without copying the keyframes: a fixed map to match
+/// against, e.g. a loop-closure submap.
+pub fn index_keyframes(keyframes: &[Keyframe], voxel_m: f64) -> GridIndex {
+    let mut voxels = VoxelMap::default();
+    let (mut points, mut normals) = (Vec::new(), Vec::new());
+    for kf in keyframes {
+        add_keyframe_points(kf, voxel_m, &mut voxels, &mut points, &mut normals);
+    }
+    GridIndex::new(points, Some(normals), voxel_m * GRID_CELL_VOXELS)
 }
 
 #[cfg(test)]
@@ -178,6 +207,21 @@ mod tests {
         // keyframe 0 fell out of the window; the two points of the last share a voxel
         assert_eq!(map.points().len(), 2);
         assert!((map.points()[0] - Point2::new(20.0, 1.0)).norm() < 1e-12);
+    }
+
+    #[test]
+    fn fixed_index_equals_a_global_map() {
+        let kfs: Vec<Keyframe> = (0..4)
+            .map(|i| kf(i as f64 * 0.02, &[(1.0, 0.0), (1.0, 0.5), (2.0, -1.0)]))
+            .collect();
+        let mut map = KeyframeMap::new(0.05, 0);
+        map.extend(kfs.iter().cloned());
+        let index = index_keyframes(&kfs, 0.05);
+        assert_eq!(index.points(), map.points());
+        assert!(index.points().len() < 12, "nearby keyframes share voxels");
+        for i in 0..index.len() {
+            assert_eq!(index.normal(i), map.index().normal(i));
+        }
     }
 
     #[test]

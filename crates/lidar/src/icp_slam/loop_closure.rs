@@ -11,7 +11,8 @@ use crate::cloud::voxel_downsample;
 use crate::correlative::{correlative_match, CorrelativeConfig};
 use crate::error::check_fields;
 use crate::icp::{align, IcpConfig};
-use crate::point_map::{Keyframe, KeyframeMap};
+use crate::nn::GridIndex;
+use crate::point_map::{index_keyframes, Keyframe};
 use crate::LidarError;
 use nalgebra::Point2;
 use rayon::prelude::*;
@@ -224,14 +225,9 @@ pub fn find_closures(
                 correlative_match(&coarse_source, submap.points(), &guess, &config.correlative)
                     .ok()
                     .filter(|c| c.score >= config.min_score)?;
-            let fine = align(
-                &source,
-                submap.index(),
-                &coarse.target_from_source,
-                &config.icp,
-            )
-            .ok()
-            .filter(|r| r.goodness >= config.min_goodness)?;
+            let fine = align(&source, &submap, &coarse.target_from_source, &config.icp)
+                .ok()
+                .filter(|r| r.goodness >= config.min_goodness)?;
             let world_from_from = keyframes.get(from)?.world_from_base;
             Some(Closure {
                 from,
@@ -249,10 +245,9 @@ fn submap(
     centre: usize,
     end: usize,
     config: &LoopClosureConfig,
-) -> Option<KeyframeMap> {
+) -> Option<GridIndex> {
     let first = centre.saturating_sub(config.submap_half_keyframes);
     let last = (centre + config.submap_half_keyframes + 1).min(end);
-    let mut map = KeyframeMap::new(config.correlative.resolution_m, 0);
-    map.extend(keyframes.get(first..last)?.iter().cloned());
-    (map.index().len() >= config.icp.min_correspondences).then_some(map)
+    let index = index_keyframes(keyframes.get(first..last)?, config.correlative.resolution_m);
+    (index.len() >= config.icp.min_correspondences).then_some(index)
 }
