@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Side-by-side benchmark of 2D lidar SLAM: slamkit's ICP-SLAM and MRPT's icp-slam (Debian package
 # mrpt-apps, run through ../shared/tools/mrpt/run-mrpt.sh) on the Freiburg benchmark logs, both
-# scored with `slamkit eval relations`; wall time and peak memory from /usr/bin/time.
+# scored with `slamkit eval relations`; wall time, CPU time (user + sys) and peak memory from
+# /usr/bin/time.
 # usage: scripts/bench_lidar.sh [OUTDIR]     (needs SLAMKIT_DATA; installs mrpt-apps if missing)
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
@@ -35,24 +36,26 @@ wall = re.search(r"Elapsed \(wall clock\) time.*: (?:(\d+):)?(\d+):([\d.]+)", t)
 h, m, s = wall.groups()
 secs = int(h or 0) * 3600 + int(m) * 60 + float(s)
 mib = int(re.search(r"Maximum resident set size \(kbytes\): (\d+)", t).group(1)) / 1024
-print(f"{secs:.1f} s|{mib:.0f} MiB")
+cpu = sum(float(re.search(rf"{k} time \(seconds\): ([\d.]+)", t).group(1)) for k in ("User", "System"))
+print(f"{secs:.1f} s|{cpu:.1f} s|{mib:.0f} MiB")
 PY
 }
 
-echo "| log | slamkit icp | wall | peak | MRPT icp-slam | wall | peak | wall ratio slamkit/MRPT |"
-echo "|---|---|---|---|---|---|---|---|"
+echo "| log | slamkit icp | wall | CPU | peak | MRPT icp-slam | wall | CPU | peak | wall ratio | CPU ratio |"
+echo "|---|---|---|---|---|---|---|---|---|---|---|"
 for run in "${runs[@]}"; do
   IFS='|' read -r name log rel flags <<<"$run"
   d=$out/$name
   /usr/bin/time -v -o "$d.slamkit.time" "$slamkit" lidar "$data/$log" --relations "$data/$rel" \
     --out "$d/slamkit" >/dev/null 2>&1
   s_err=$(field "$(score "$data/$rel" "$d/slamkit/trajectory.tum")")
-  IFS='|' read -r s_wall s_mem <<<"$(timing "$d.slamkit.time")"
+  IFS='|' read -r s_wall s_cpu s_mem <<<"$(timing "$d.slamkit.time")"
   # shellcheck disable=SC2086
   "$mrpt_tools/run-mrpt.sh" icp "$data/$log" "$d/mrpt" $flags >/dev/null 2>&1
   to_tum "$d/mrpt/trajectory.txt" "$d/mrpt/trajectory.tum"
   m_err=$(field "$(score "$data/$rel" "$d/mrpt/trajectory.tum")")
-  IFS='|' read -r m_wall m_mem <<<"$(timing "$d/mrpt/time.txt")"
+  IFS='|' read -r m_wall m_cpu m_mem <<<"$(timing "$d/mrpt/time.txt")"
   ratio=$(python3 -c "print(f'{${s_wall% s}/${m_wall% s}:.2f}')")
-  echo "| $name | $s_err | $s_wall | $s_mem | $m_err | $m_wall | $m_mem | $ratio |"
+  cpu_ratio=$(python3 -c "print(f'{${s_cpu% s}/${m_cpu% s}:.2f}')")
+  echo "| $name | $s_err | $s_wall | $s_cpu | $s_mem | $m_err | $m_wall | $m_cpu | $m_mem | $ratio | $cpu_ratio |"
 done

@@ -3,7 +3,7 @@
 //! Censi 2008 takes them from the two nearest points, PCA over a few neighbours is the same
 //! idea made robust to range noise).
 
-use crate::nn::PointIndex;
+use crate::nn::{NearestNeighbours, PointIndex};
 use nalgebra::{Matrix2, Point2, Vector2};
 use slamkit_core::LaserScan;
 use std::collections::HashMap;

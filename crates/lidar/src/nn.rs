@@ -11,17 +11,48 @@ use std::collections::HashSet;
 pub mod grid;
 pub use grid::GridIndex;
 
-/// The queries ICP makes of a point set.
+/// A point set with optional unit normals, indexed for the queries ICP makes.
 pub trait NearestNeighbours {
     /// The nearest point to `query` at most `max_dist_m` away, or `None` when there is none or
     /// the query is not finite.
     fn nearest_within(&self, query: &Point2<f64>, max_dist_m: f64) -> Option<Neighbour>;
 
+    /// The points, in the order given.
+    fn points(&self) -> &[Point2<f64>];
+
+    /// One normal per point (`None` where the surface has no clear direction).
+    fn normals(&self) -> &[Option<Vector2<f64>>];
+
+    /// Number of points.
+    fn len(&self) -> usize {
+        self.points().len()
+    }
+
+    /// True when there are no points.
+    fn is_empty(&self) -> bool {
+        self.points().is_empty()
+    }
+
     /// Point `i`.
-    fn point(&self, i: usize) -> Option<&Point2<f64>>;
+    fn point(&self, i: usize) -> Option<&Point2<f64>> {
+        self.points().get(i)
+    }
 
     /// Unit normal of point `i`, when it has one.
-    fn normal(&self, i: usize) -> Option<Vector2<f64>>;
+    fn normal(&self, i: usize) -> Option<Vector2<f64>> {
+        self.normals().get(i).copied().flatten()
+    }
+}
+
+/// `normals` when there is one per point, else no normal anywhere.
+fn normals_or_none(
+    normals: Option<Vec<Option<Vector2<f64>>>>,
+    points: usize,
+) -> Vec<Option<Vector2<f64>>> {
+    match normals {
+        Some(n) if n.len() == points => n,
+        _ => vec![None; points],
+    }
 }
 
 impl NearestNeighbours for PointIndex {
@@ -29,12 +60,12 @@ impl NearestNeighbours for PointIndex {
         self.nearest(query).filter(|n| n.distance_m <= max_dist_m)
     }
 
-    fn point(&self, i: usize) -> Option<&Point2<f64>> {
-        PointIndex::point(self, i)
+    fn points(&self) -> &[Point2<f64>] {
+        &self.points
     }
 
-    fn normal(&self, i: usize) -> Option<Vector2<f64>> {
-        PointIndex::normal(self, i)
+    fn normals(&self) -> &[Option<Vector2<f64>>] {
+        &self.normals
     }
 }
 
@@ -82,10 +113,7 @@ impl PointIndex {
     /// Indexes `points`; `normals`, when given, must have one entry per point (`None` where the
     /// local surface has no clear direction). A length mismatch drops the normals.
     pub fn new(points: Vec<Point2<f64>>, normals: Option<Vec<Option<Vector2<f64>>>>) -> Self {
-        let normals = match normals {
-            Some(n) if n.len() == points.len() => n,
-            _ => vec![None; points.len()],
-        };
+        let normals = normals_or_none(normals, points.len());
         // kiddo's immutable tree misbuilds on exact duplicates, and NaN has no place in it:
         // index each distinct finite position once.
         let mut seen = HashSet::with_capacity(points.len());
@@ -124,31 +152,6 @@ impl PointIndex {
     fn tree_query(&self, query: &Point2<f64>) -> Option<[f64; 2]> {
         let q = self.tree_from_world * query;
         (q.x.is_finite() && q.y.is_finite()).then_some([q.x, q.y])
-    }
-
-    /// Number of indexed points.
-    pub fn len(&self) -> usize {
-        self.points.len()
-    }
-
-    /// True when nothing is indexed.
-    pub fn is_empty(&self) -> bool {
-        self.points.is_empty()
-    }
-
-    /// The indexed points.
-    pub fn points(&self) -> &[Point2<f64>] {
-        &self.points
-    }
-
-    /// Point `i`.
-    pub fn point(&self, i: usize) -> Option<&Point2<f64>> {
-        self.points.get(i)
-    }
-
-    /// Unit normal of point `i`, when it has one.
-    pub fn normal(&self, i: usize) -> Option<Vector2<f64>> {
-        self.normals.get(i).copied().flatten()
     }
 
     /// The nearest indexed point to `query`, or `None` when the index is empty or the query is
@@ -190,6 +193,13 @@ mod tests {
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 
+    /// Distance from `q` to the nearest of `pts`, by brute force.
+    fn brute_nearest(pts: &[Point2<f64>], q: &Point2<f64>) -> f64 {
+        pts.iter()
+            .map(|p| (p - q).norm())
+            .fold(f64::INFINITY, f64::min)
+    }
+
     #[test]
     fn nearest_matches_brute_force() {
         let mut rng = ChaCha8Rng::seed_from_u64(7);
@@ -199,10 +209,7 @@ mod tests {
         let index = PointIndex::new(pts.clone(), None);
         for _ in 0..200 {
             let q = Point2::new(rng.gen_range(-12.0..12.0), rng.gen_range(-12.0..12.0));
-            let brute = pts
-                .iter()
-                .map(|p| (p - q).norm())
-                .fold(f64::INFINITY, f64::min);
+            let brute = brute_nearest(&pts, &q);
             let nn = index.nearest(&q).unwrap();
             assert!((nn.distance_m - brute).abs() < 1e-9);
             let k = index.nearest_k(&q, 3);
@@ -225,10 +232,7 @@ mod tests {
         let mut rng = ChaCha8Rng::seed_from_u64(8);
         for _ in 0..300 {
             let q = Point2::new(rng.gen_range(-1.0..4.0), rng.gen_range(-1.0..4.0));
-            let brute = pts
-                .iter()
-                .map(|p| (p - q).norm())
-                .fold(f64::INFINITY, f64::min);
+            let brute = brute_nearest(&pts, &q);
             assert!((index.nearest(&q).unwrap().distance_m - brute).abs() < 1e-9);
         }
     }
@@ -244,10 +248,7 @@ mod tests {
         }
         let index = PointIndex::new(pts.clone(), None);
         let q = Point2::new(5.5, 0.013);
-        let brute = pts
-            .iter()
-            .map(|p| (p - q).norm())
-            .fold(f64::INFINITY, f64::min);
+        let brute = brute_nearest(&pts, &q);
         assert!((index.nearest(&q).unwrap().distance_m - brute).abs() < 1e-9);
     }
 

@@ -11,7 +11,7 @@ use crate::cloud::voxel_downsample;
 use crate::correlative::{correlative_match, CorrelativeConfig};
 use crate::error::check_fields;
 use crate::icp::{align, IcpConfig};
-use crate::nn::GridIndex;
+use crate::nn::{GridIndex, NearestNeighbours};
 use crate::point_map::{index_keyframes, Keyframe};
 use crate::LidarError;
 use nalgebra::Point2;

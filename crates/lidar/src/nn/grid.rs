@@ -12,7 +12,7 @@
 //! stops once the nearest point found is closer than anything the next ring could hold, or the
 //! ring lies beyond the radius: the answer is the exact nearest point within the radius.
 
-use super::{NearestNeighbours, Neighbour};
+use super::{normals_or_none, NearestNeighbours, Neighbour};
 use nalgebra::{Point2, Vector2};
 
 /// Points and queries farther than this from the origin along an axis are ignored (no scanner
@@ -48,10 +48,7 @@ impl GridIndex {
         normals: Option<Vec<Option<Vector2<f64>>>>,
         cell_m: f64,
     ) -> Self {
-        let normals = match normals {
-            Some(n) if n.len() == points.len() => n,
-            _ => vec![None; points.len()],
-        };
+        let normals = normals_or_none(normals, points.len());
         let usable =
             |p: &Point2<f64>| p.x.abs() <= MAX_COORDINATE_M && p.y.abs() <= MAX_COORDINATE_M;
         let (min, max) = points.iter().filter(|p| usable(p)).fold(
@@ -144,21 +141,6 @@ impl GridIndex {
     fn cell_coords(&self, p: &Point2<f64>) -> ((i64, i64), Vector2<f64>) {
         let f = (p - self.origin) / self.cell_m;
         ((floor_clamped(f.x), floor_clamped(f.y)), f)
-    }
-
-    /// Number of points given (indexed or not).
-    pub fn len(&self) -> usize {
-        self.points.len()
-    }
-
-    /// True when no point was given.
-    pub fn is_empty(&self) -> bool {
-        self.points.is_empty()
-    }
-
-    /// The points given, in input order.
-    pub fn points(&self) -> &[Point2<f64>] {
-        &self.points
     }
 
     /// Side of the cells \[m\] (larger than asked when the points spread very wide).
@@ -263,12 +245,12 @@ impl NearestNeighbours for GridIndex {
         })
     }
 
-    fn point(&self, i: usize) -> Option<&Point2<f64>> {
-        self.points.get(i)
+    fn points(&self) -> &[Point2<f64>] {
+        &self.points
     }
 
-    fn normal(&self, i: usize) -> Option<Vector2<f64>> {
-        self.normals.get(i).copied().flatten()
+    fn normals(&self) -> &[Option<Vector2<f64>>] {
+        &self.normals
     }
 }
 
