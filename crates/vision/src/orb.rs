@@ -147,7 +147,7 @@ impl Orb {
             let Ok(blurred) = gaussian_blur(&level_img, 7, 2.0) else {
                 continue;
             };
-            for k in kps {
+            for (k, response) in kps {
                 let angle = self.ic_angle(&level_img, k.x, k.y);
                 out.descriptors.push(describe(&blurred, k.x, k.y, angle));
                 out.keypoints.push(Keypoint {
@@ -155,7 +155,7 @@ impl Orb {
                     y: k.y as f32 * scale,
                     level,
                     angle_rad: angle,
-                    response: harris_response(&level_img, k.x, k.y),
+                    response,
                     size: 31.0 * scale,
                 });
             }
@@ -163,8 +163,9 @@ impl Orb {
         out
     }
 
-    /// FAST corners of one level, the best `2n` by FAST score, then the best `n` by Harris.
-    fn detect_level(&self, img: &GrayImage, n: usize) -> Vec<FastCorner> {
+    /// FAST corners of one level, the best `2n` by FAST score, then the best `n` by Harris,
+    /// with their Harris responses.
+    fn detect_level(&self, img: &GrayImage, n: usize) -> Vec<(FastCorner, f32)> {
         let mut kps = fast9(
             img,
             self.config.fast_threshold,
@@ -177,7 +178,7 @@ impl Orb {
             .map(|k| (k, harris_response(img, k.x, k.y)))
             .collect();
         retain_best(&mut scored, n, |s| s.1);
-        scored.into_iter().map(|s| s.0).collect()
+        scored
     }
 
     /// Intensity-centroid angle over the radius-15 disc \[rad\], in `[0, 2π)`.
