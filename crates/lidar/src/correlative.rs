@@ -163,9 +163,7 @@ impl Field {
                     continue;
                 };
                 for (o, v) in out.iter_mut().zip(next) {
-                    if *v > *o {
-                        *o = *v;
-                    }
+                    *o = if *v > *o { *v } else { *o };
                 }
             }
         }
