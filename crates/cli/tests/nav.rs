@@ -1,6 +1,6 @@
-//! `slamkit nav` end to end: the simulated ground robot, localised by lidar ICP-SLAM, drives to
-//! the office world's built-in goal and writes every output; goals off the world or inside an
-//! obstacle, and bad settings files, exit non-zero with a message that says why.
+//! `slamkit nav` end to end: the simulated ground robot, localised by RGB-D visual odometry,
+//! drives to the office world's built-in goal and writes every output; goals off the world or
+//! inside an obstacle, and bad settings files, exit non-zero with a message that says why.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers fail loudly
 
 use std::path::Path;
@@ -24,7 +24,7 @@ fn office_seed_1_reaches_the_built_in_goal() {
     assert!(result.status.success(), "{result:?}");
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
-    assert_eq!(report["localisation"], "lidar ICP-SLAM");
+    assert_eq!(report["localisation"], "RGB-D visual odometry");
     assert_eq!(report["input"]["goal_m"], serde_json::json!([11.5, 5.0]));
     let m = &report["metrics"];
     assert_eq!(m["reached"], true, "{m}");
@@ -33,12 +33,18 @@ fn office_seed_1_reaches_the_built_in_goal() {
     assert!(length > 0.8 * optimal && length < 1.25 * optimal, "{m}");
     assert!(m["max_cross_track_m"].as_f64().unwrap() <= 0.17, "{m}");
     assert!(m["time_s"].as_f64().unwrap() < 120.0, "{m}");
-    for file in ["map.png", "trajectory.tum", "groundtruth.tum"] {
+    for file in ["map.png", "trajectory.tum", "groundtruth.tum", "frames.csv"] {
         assert!(out.join(file).metadata().unwrap().len() > 100, "{file}");
     }
     let tum = std::fs::read_to_string(out.join("trajectory.tum")).unwrap();
     let poses = tum.lines().filter(|l| !l.starts_with('#')).count();
-    assert_eq!(poses, report["frames"]["read"].as_u64().unwrap() as usize);
+    let frames = &report["frames"];
+    assert_eq!(poses, frames["tracked"].as_u64().unwrap() as usize);
+    let csv = std::fs::read_to_string(out.join("frames.csv")).unwrap();
+    assert_eq!(
+        csv.lines().count(),
+        1 + frames["frames"].as_u64().unwrap() as usize
+    );
 }
 
 #[test]

@@ -1,34 +1,39 @@
 //! `slamkit nav`: the closed navigation loop in the simulator.
 //!
 //! The simulated differential-drive robot drives from the start of the world's drive path to
-//! the goal ([`closed_loop`]): localised by lidar ICP-SLAM (the simulator has no RGB-D camera),
-//! re-planning every 1.5 s on the map it builds, following the path with the carrot tracker.
+//! the goal ([`closed_loop`]): localised by RGB-D visual odometry, mapping the depth images into
+//! a floor grid ([`camera_slam`]), re-planning every 1.5 s on it, following the path with the
+//! carrot tracker.
 //! Writes in `--out`: `trajectory.tum` (estimated poses), `groundtruth.tum` (true poses),
+//! `frames.csv` (per camera frame: true and estimated pose, VO's status, inliers and failure),
 //! `map.png` (the robot's map, inflated obstacles shaded, every plan in red, the true driven
 //! path in blue, the true-map shortest path in green) and `report.json` (`localisation`,
 //! `metrics.reached`, `metrics.time_s`, `metrics.path_length_m`, `metrics.optimal_length_m`,
 //! `metrics.max_cross_track_m`, ...).
 
+pub mod camera_slam;
 pub mod closed_loop;
 
 use crate::commands::plan::{parse_xy, save_rgb_png};
 use crate::output::{peak_rss_bytes, prepare_out_dir, timings_json, write_report};
 use anyhow::Context;
-use closed_loop::{planning_grid, run_nav_loop, NavLoopConfig, NavOutcome};
+use closed_loop::{run_nav_loop, FrameRecord, NavLoopConfig, NavOutcome};
 use nalgebra::Point2;
 use serde_json::json;
 use slamkit_core::image::RgbImage;
+use slamkit_core::Pose2;
 use slamkit_io::write_tum;
 use slamkit_nav::render::{draw_path, pixel_of};
 use slamkit_sim::World;
+use slamkit_vo::FrameStatus;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// Arguments of `slamkit nav`.
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Localisation: lidar ICP-SLAM on the simulated 2D lidar (the simulator has no \
-                  RGB-D camera). The robot starts at the first point of the world's drive path, \
+    after_help = "Localisation: RGB-D visual odometry on the simulated camera (10 Hz), mapping \
+                  its depth into a floor grid. The robot starts at the first point of the world's drive path, \
                   re-plans every 1.5 s on the map it builds and follows the path with the \
                   carrot tracker."
 )]
@@ -64,18 +69,14 @@ pub fn run(args: &NavArgs) -> anyhow::Result<()> {
     let out = prepare_out_dir(&args.out)?;
     write_tum(&out.join("trajectory.tum"), &outcome.estimate)?;
     write_tum(&out.join("groundtruth.tum"), &outcome.ground_truth)?;
-    write_map_png(&out.join("map.png"), &outcome, &goal, &config)?;
+    write_map_png(&out.join("map.png"), &outcome, &config)?;
+    write_frames_csv(&out.join("frames.csv"), &outcome.frames)?;
     let o = &outcome;
     let report = json!({
         "input": { "world": world_name, "seed": args.seed, "goal_m": [goal.x, goal.y] },
-        "localisation": "lidar ICP-SLAM",
+        "localisation": "RGB-D visual odometry",
         "config": config,
-        "frames": {
-            "read": o.slam_stats.scans_read,
-            "processed": o.slam_stats.scans_processed,
-            "skipped": o.slam_stats.scans_skipped,
-            "failed": o.slam_stats.matches_failed,
-        },
+        "frames": o.camera_stats,
         "metrics": {
             "reached": o.reached,
             "time_s": o.time_s,
@@ -89,7 +90,6 @@ pub fn run(args: &NavArgs) -> anyhow::Result<()> {
             "plans": o.plans.len(),
             "plan_failures": o.plan_failures,
             "blocked_steps": o.blocked_steps,
-            "loop_closures": o.slam_stats.loop_closures,
         },
         "timings_ms": timings_json(&o.timings),
         "wall_seconds": started.elapsed().as_secs_f64(),
@@ -124,27 +124,51 @@ fn load_config(path: Option<&Path>) -> anyhow::Result<NavLoopConfig> {
     toml::from_str(&text).with_context(|| format!("parsing {}", path.display()))
 }
 
+/// One line per camera frame: time, true and estimated `x, y, yaw` (m, degrees; empty when
+/// VO failed), VO's status, inliers, correspondences and failure reason.
+fn write_frames_csv(path: &Path, frames: &[FrameRecord]) -> anyhow::Result<()> {
+    let mut text = String::from(
+        "t_s,true_x_m,true_y_m,true_yaw_deg,est_x_m,est_y_m,est_yaw_deg,status,inliers,\
+         correspondences,reason\n",
+    );
+    let pose = |p: &Pose2| {
+        let t = p.translation.vector;
+        format!(
+            "{:.4},{:.4},{:.3}",
+            t.x,
+            t.y,
+            p.rotation.angle().to_degrees()
+        )
+    };
+    for f in frames {
+        let estimate = f.estimate.as_ref().map_or(",,".to_string(), pose);
+        let status = match &f.status {
+            FrameStatus::Initialised { features } => format!("initialised,{features},,"),
+            FrameStatus::Tracked {
+                inliers,
+                correspondences,
+            } => format!("tracked,{inliers},{correspondences},"),
+            FrameStatus::Failed(reason) => {
+                format!("failed,,,\"{}\"", format!("{reason:?}").replace('"', "'"))
+            }
+        };
+        text += &format!("{:.2},{},{estimate},{status}\n", f.t_s, pose(&f.truth));
+    }
+    std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))
+}
+
 /// Draws the robot's final map with every plan (red), the true-map shortest path (green) and
 /// the true driven path (blue), three pixels per cell.
-fn write_map_png(
-    path: &Path,
-    outcome: &NavOutcome,
-    goal: &Point2<f64>,
-    config: &NavLoopConfig,
-) -> anyhow::Result<()> {
-    let start = outcome
-        .ground_truth
-        .poses
-        .first()
-        .map(|p| Point2::new(p.pose.translation.x, p.pose.translation.y))
-        .context("the run has no pose")?;
-    let margin = config.inflate_cells() as i32 + 2;
-    let grid = planning_grid(&outcome.grid, &[start, *goal], margin)
-        .context("the map cannot hold the start and goal")?;
-    let mut image = draw_path(&grid, &grid.inflated(config.inflate_cells()), &[]);
+fn write_map_png(path: &Path, outcome: &NavOutcome, config: &NavLoopConfig) -> anyhow::Result<()> {
+    let grid = &outcome.grid;
+    let mut image = draw_path(
+        grid,
+        &grid.inflated(config.inflate_cells(config.grid.resolution_m)),
+        &[],
+    );
     let mut mark = |points: &mut dyn Iterator<Item = Point2<f64>>, colour: [u8; 3]| {
         for p in points {
-            if let Some((col, row)) = pixel_of(&grid, &p) {
+            if let Some((col, row)) = pixel_of(grid, &p) {
                 if let Some(px) = image.get_mut(col, row) {
                     *px = colour;
                 }

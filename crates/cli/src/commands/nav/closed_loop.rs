@@ -1,42 +1,62 @@
-//! The closed navigation loop in the simulator, stepped at the lidar rate.
+//! The closed navigation loop in the simulator, stepped at the RGB-D camera's rate.
 //!
 //! The simulated differential-drive robot ([`slamkit_sim`]) starts at the first point of the
-//! world's drive path. At every lidar period: the simulator casts a noisy scan from the true
-//! pose and adds the drifting wheel odometry; incremental ICP-SLAM ([`IcpSlam`]) gives the pose
-//! estimate; the scan is inserted at that estimate into a growing log-odds occupancy grid;
-//! every `replan_period_s` the path is re-planned from the estimated position to the goal on the
-//! inflated grid (known-free cells first, unknown cells only when needed, [`plan_on_grid`]); the
-//! carrot-following tracker ([`PathTracker`]) turns the estimate into speed and yaw-rate
-//! commands, which the simulator integrates (exact unicycle arcs) to move the true robot.
-//! A move that would bring the robot's body into an obstacle is refused (the robot stays put)
-//! and counted. The simulator has no RGB-D camera, so localisation is lidar ICP-SLAM.
-//!
-//! The SLAM frame is anchored at the first scan; the robot knows its start pose in the world
-//! (the goal is given in world coordinates), so estimates are mapped into the world frame by it.
+//! world's drive path, knowing its start pose (the goal is given in world coordinates). At
+//! every camera period: the simulator renders a noisy RGB-D frame from the true camera pose;
+//! [`CameraSlam`] localises with visual odometry and maps the depth into a floor grid; every
+//! `replan_period_s` (while the motion gate is open) the path is re-planned from the estimated
+//! position to the goal on the inflated grid (known-free cells first, unknown cells only when
+//! needed, [`plan_on_grid`]); the carrot-following tracker ([`PathTracker`]) turns the
+//! estimate into speed and yaw-rate commands (zero when VO lost the frame), which the
+//! simulator integrates (exact unicycle arcs) to move the true robot. A move that would bring
+//! the robot's body into an obstacle is refused (the robot stays put) and counted.
 //!
 //! Scoring uses what the robot never sees: the true poses, and the world rasterised into a grid
 //! whose inflated A* path from start to goal is the reference length.
 
+use super::camera_slam::{CameraSlam, CameraStats};
 use anyhow::Context;
 use nalgebra::{Point2, Point3, Vector2};
 use serde::{Deserialize, Serialize};
+use slamkit_core::image::{Image, RgbImage};
 use slamkit_core::pose::{pose2_to_pose3, pose3_to_pose2};
-use slamkit_core::{LaserScan, Pose2, Pose3, StageTimings, Trajectory};
-use slamkit_lidar::icp_slam::{IcpSlam, IcpSlamConfig, IcpSlamStats};
-use slamkit_map::{CellIndex, Occupancy, OccupancyGrid, OccupancyGridConfig, TriGrid};
+use slamkit_core::{Pose2, Pose3, StageTimings, Trajectory};
+use slamkit_map::floor_grid::FloorGridConfig;
+use slamkit_map::{Occupancy, TriGrid};
 use slamkit_nav::{
-    plan_on_grid, GridPlanner, PathTracker, PlannedPath, TrackerConfig, TrackerStatus,
+    plan_on_grid, GridPlanner, MotionGateConfig, PathTracker, PlannedPath, TrackerConfig,
+    TrackerStatus,
 };
+use slamkit_sim::camera::render_rgbd;
 use slamkit_sim::{
-    Lidar2dConfig, OdometrySimulator, RobotKind, Scene, SimConfig, Simulation, Stream, World,
+    CameraMount, RgbdCameraConfig, RobotKind, Scene, SimConfig, Simulation, Stream, World,
 };
+use slamkit_vo::{FrameStatus, VoConfig};
 use std::time::Instant;
 
-/// Range of the ground robot's lidar \[m\]: the simulator's default 3 m (a drone's lidar)
-/// leaves the office's open areas with a single wall in view, along which ICP slides (seeds 1
-/// to 10: 0.08 to 0.84 m of localisation error); 8 m is within the reach of common 2D lidars
-/// of small ground robots (12 m for an RPLIDAR A1).
-pub const GROUND_LIDAR_RANGE_M: f64 = 8.0;
+/// Frame rate of the camera in the loop \[Hz\] (the sensor gives 30). Measured on office
+/// seed 1 (BENCHMARKS.md): a 640×480 frame takes a median 52 ms to render and 11 ms of VO, so
+/// 30 Hz would run the simulation at half real time; at 10 Hz the robot moves at most 2.5 cm
+/// and turns at most 3° between frames, well within KLT's reach.
+pub const CAMERA_RATE_HZ: f64 = 10.0;
+
+/// Cell size of the true map on which the optimal path is planned \[m\].
+pub const TRUTH_RESOLUTION_M: f64 = 0.05;
+
+/// The camera on the robot: 0.45 m above the floor, 5 cm ahead of the base's centre, tilted
+/// 10° down (a Kinect on a TurtleBot 2 sits about as high). The simulator's default, 0.2 m and
+/// level, sees the floor at grazing angles and, in the office's open middle, little else within
+/// the 4.5 m depth range: VO keeps 50-80 inliers there and its yaw jumps by up to 3° (seeds 1 to
+/// 4: 2 of 4 reached, localisation error up to 0.37 m; BENCHMARKS.md).
+pub fn camera_mount() -> CameraMount {
+    CameraMount {
+        xyz_m: [0.05, 0.0, 0.45],
+        tilt_down_rad: 10f64.to_radians(),
+    }
+}
+
+/// The floor grid covers the rectangle around the start and the goal widened by this \[m\].
+pub const MAP_MARGIN_M: f64 = 10.0;
 
 /// Look-ahead of the tracker in the loop \[m\]: the tracker's 0.5 m default cuts the hairpin
 /// around the end of the `large` world's wall at (5, 4) so tightly that the body touches it
@@ -59,13 +79,18 @@ pub struct NavLoopConfig {
     /// Obstacles are inflated by this much beyond the robot's radius, room for the tracker to
     /// cut corners \[m\].
     pub safety_margin_m: f64,
-    /// The growing map.
-    pub grid: OccupancyGridConfig,
+    /// The floor grid built from the depth images.
+    pub grid: FloorGridConfig,
+    /// Depth pixels inserted: every `depth_step_px`-th pixel of every `depth_step_px`-th row.
+    pub depth_step_px: usize,
     /// The path tracker (its goal tolerance is where the robot stops).
     pub tracker: TrackerConfig,
-    /// Localisation and mapping.
-    pub slam: IcpSlamConfig,
-    /// The simulated robot and its sensors (`robot` is always the ground robot).
+    /// Visual odometry.
+    pub vo: VoConfig,
+    /// Mapping and planning pause while the camera turns faster than this.
+    pub gate: MotionGateConfig,
+    /// The simulated robot and its sensors (`robot` is always the ground robot; the camera is
+    /// `sim.rgbd`).
     pub sim: SimConfig,
 }
 
@@ -77,17 +102,20 @@ impl Default for NavLoopConfig {
             time_limit_s: 240.0,
             robot_radius_m: 0.15,
             safety_margin_m: 0.05,
-            grid: OccupancyGridConfig::default(),
+            grid: FloorGridConfig::default(),
+            depth_step_px: 4,
             tracker: TrackerConfig {
                 lookahead_m: TRACKER_LOOKAHEAD_M,
                 ..TrackerConfig::default()
             },
-            slam: IcpSlamConfig::default(),
+            vo: VoConfig::default(),
+            gate: MotionGateConfig::default(),
             sim: SimConfig {
                 robot: RobotKind::DiffDrive,
-                lidar: Lidar2dConfig {
-                    max_range_m: GROUND_LIDAR_RANGE_M,
-                    ..Lidar2dConfig::default()
+                rgbd: RgbdCameraConfig {
+                    rate_hz: CAMERA_RATE_HZ,
+                    mount: camera_mount(),
+                    ..RgbdCameraConfig::default()
                 },
                 ..SimConfig::default()
             },
@@ -111,10 +139,11 @@ impl NavLoopConfig {
         Ok(())
     }
 
-    /// Obstacle inflation in grid cells: the robot's radius and the safety margin, rounded up.
-    pub fn inflate_cells(&self) -> usize {
+    /// Obstacle inflation in cells of `resolution_m`: the robot's radius and the safety
+    /// margin, rounded up.
+    pub fn inflate_cells(&self, resolution_m: f64) -> usize {
         let radius_m = self.robot_radius_m + self.safety_margin_m;
-        (radius_m / self.grid.resolution_m - 1e-9).ceil().max(0.0) as usize
+        (radius_m / resolution_m - 1e-9).ceil().max(0.0) as usize
     }
 }
 
@@ -123,12 +152,12 @@ impl NavLoopConfig {
 pub struct NavOutcome {
     /// True `world_from_base` at every step.
     pub ground_truth: Trajectory,
-    /// Estimated `world_from_base` (SLAM, mapped into the world frame) at every step.
+    /// Estimated `world_from_base` (VO through the camera mount) at every step.
     pub estimate: Trajectory,
     /// Every plan made, in order.
     pub plans: Vec<PlannedPath>,
     /// The map built by the robot (world frame).
-    pub grid: OccupancyGrid,
+    pub grid: TriGrid,
     /// Shortest path from start to goal on the world rasterised ([`rasterise_world`]) and
     /// inflated by the robot's radius.
     pub optimal: PlannedPath,
@@ -150,16 +179,30 @@ pub struct NavOutcome {
     pub plan_failures: usize,
     /// Steps whose move was refused because the body would touch an obstacle.
     pub blocked_steps: usize,
-    /// ICP-SLAM counters.
-    pub slam_stats: IcpSlamStats,
-    /// Per-stage times: `slam`, `map`, `plan`, `track` (ms).
+    /// Camera frame counters.
+    pub camera_stats: CameraStats,
+    /// Every frame: true and estimated pose, what VO made of it.
+    pub frames: Vec<FrameRecord>,
+    /// Per-stage times: `render`, `vo`, `map`, `plan`, `track` (ms).
     pub timings: StageTimings,
+}
+
+/// One camera frame of the run.
+#[derive(Debug, Clone)]
+pub struct FrameRecord {
+    /// Simulated time \[s\].
+    pub t_s: f64,
+    /// True `world_from_base`.
+    pub truth: Pose2,
+    /// Estimated `world_from_base` (`None`: VO failed).
+    pub estimate: Option<Pose2>,
+    /// What VO made of the frame.
+    pub status: FrameStatus,
 }
 
 /// The robot's state while the loop runs.
 struct Robot {
     sim: Simulation,
-    odometry: OdometrySimulator,
     truth: Pose2,
     base_height_m: f64,
 }
@@ -172,10 +215,7 @@ impl Robot {
         };
         let sim = Simulation::new(world, sim_config, seed).context("setting up the simulation")?;
         let start = sim.state_at(0.0).world_from_base;
-        let odometry =
-            OdometrySimulator::new(sim.odometry_config().clone(), sim.rng(Stream::Odometry, 0));
         Ok(Self {
-            odometry,
             truth: pose3_to_pose2(&start),
             base_height_m: start.translation.z,
             sim,
@@ -188,17 +228,17 @@ impl Robot {
         p
     }
 
-    /// Scan number `index` at time `t` from the true pose, with the odometry so far.
-    fn scan(&mut self, index: usize, t: f64) -> LaserScan {
-        let pose = self.truth3(&self.truth);
-        let mut rng = self.sim.rng(Stream::Lidar, index as u64);
-        let mut scan = self
-            .sim
-            .config
-            .lidar
-            .scan(&self.sim.scene, &pose, t, &mut rng);
-        scan.odometry = Some(self.odometry.update(&self.truth));
-        scan
+    /// Frame number `index` of the camera at the true pose: colour and depth \[m\].
+    fn frame(&self, index: usize) -> (RgbImage, Image<f32>) {
+        let camera = &self.sim.config.rgbd;
+        let world_from_camera = self.truth3(&self.truth) * camera.mount.base_from_camera();
+        render_rgbd(
+            &self.sim.scene,
+            camera,
+            world_from_camera,
+            &self.sim.rng(Stream::Image, index as u64),
+            &self.sim.rng(Stream::Depth, index as u64),
+        )
     }
 
     /// Drives `dt_s` under the command; returns false when the move was refused.
@@ -258,42 +298,6 @@ pub fn rasterise_world(
     Ok(grid)
 }
 
-/// The robot's map as a tri-state grid holding its known cells and every point of `must_hold`
-/// (start, goal), with `margin` unknown cells around them so the planner can skirt them.
-pub fn planning_grid(
-    grid: &OccupancyGrid,
-    must_hold: &[Point2<f64>],
-    margin: i32,
-) -> Option<TriGrid> {
-    let mut cells: Vec<CellIndex> = must_hold
-        .iter()
-        .map(|p| grid.cell_at(p))
-        .collect::<Option<_>>()?;
-    if let Some(b) = grid.known_bounds() {
-        cells.extend([b.min, b.max]);
-    }
-    let min_x = cells.iter().map(|c| c.x).min()? - margin;
-    let min_y = cells.iter().map(|c| c.y).min()? - margin;
-    let max_x = cells.iter().map(|c| c.x).max()? + margin;
-    let max_y = cells.iter().map(|c| c.y).max()? + margin;
-    let res = grid.resolution_m();
-    let origin = grid.origin_m() + Vector2::new(f64::from(min_x) * res, f64::from(min_y) * res);
-    let (w, h) = ((max_x - min_x + 1) as usize, (max_y - min_y + 1) as usize);
-    let mut tri = TriGrid::new(w, h, res, origin, Occupancy::Unknown)?;
-    for y in 0..h {
-        for x in 0..w {
-            let index = CellIndex {
-                x: min_x + x as i32,
-                y: min_y + y as i32,
-            };
-            if let Some(o) = grid.occupancy(index) {
-                tri.set(x, y, o);
-            }
-        }
-    }
-    Some(tri)
-}
-
 /// Frees the cells within `radius` (Chebyshev) of `point` that are occupied only through
 /// inflation: the robot may start from (or head to) a spot close to a wall.
 fn clear_inflation_around(
@@ -348,10 +352,8 @@ pub fn distance_to_polyline(p: &Point2<f64>, path: &[Point2<f64>]) -> Option<f64
 
 /// The state of the loop between steps.
 struct LoopState {
-    slam: IcpSlam,
-    grid: OccupancyGrid,
+    camera: CameraSlam,
     tracker: PathTracker,
-    world_from_slam: Pose2,
     plans: Vec<PlannedPath>,
     plan_failures: usize,
     next_replan_s: f64,
@@ -360,13 +362,27 @@ struct LoopState {
 }
 
 impl LoopState {
-    /// Empty map, no path; the SLAM frame sits at the robot's start pose `world_from_slam`.
-    fn new(config: &NavLoopConfig, world_from_slam: Pose2) -> anyhow::Result<Self> {
+    /// Empty map, no path, VO started at the robot's known start pose `start`; the map covers
+    /// the start and the goal widened by [`MAP_MARGIN_M`].
+    fn new(config: &NavLoopConfig, start: &Pose3, goal: &Point2<f64>) -> anyhow::Result<Self> {
+        let s = start.translation;
+        let margin = Vector2::new(MAP_MARGIN_M, MAP_MARGIN_M);
+        let bounds = [
+            Point2::new(s.x.min(goal.x), s.y.min(goal.y)) - margin,
+            Point2::new(s.x.max(goal.x), s.y.max(goal.y)) + margin,
+        ];
+        let camera = CameraSlam::new(
+            &config.sim.rgbd,
+            &config.vo,
+            &config.grid,
+            &config.gate,
+            config.depth_step_px,
+            start,
+            bounds,
+        )?;
         Ok(Self {
-            slam: IcpSlam::new(config.slam.clone()).context("ICP-SLAM configuration")?,
-            grid: OccupancyGrid::new(config.grid.clone()).context("grid configuration")?,
+            camera,
             tracker: PathTracker::new(config.tracker.clone()).context("tracker configuration")?,
-            world_from_slam,
             plans: Vec::new(),
             plan_failures: 0,
             next_replan_s: 0.0,
@@ -375,35 +391,20 @@ impl LoopState {
         })
     }
 
-    /// Localises and maps with `scan`; returns the estimated `world_from_base`.
-    fn localise(&mut self, scan: &LaserScan) -> anyhow::Result<Pose2> {
-        let started = Instant::now();
-        let estimate = self.world_from_slam * self.slam.process(scan).world_from_base;
-        self.timings.record_since("slam", started);
-        let started = Instant::now();
-        self.grid
-            .insert_scan(scan, &(estimate * scan.base_from_laser))
-            .context("inserting a scan into the map")?;
-        self.timings.record_since("map", started);
-        Ok(estimate)
-    }
-
     /// Re-plans when due (or when there is no path yet).
     fn replan(&mut self, t: f64, position: &Point2<f64>, goal: &Point2<f64>, inflate: usize) {
         if t + 1e-9 < self.next_replan_s && !self.tracker.path().is_empty() {
             return;
         }
         let started = Instant::now();
-        let planned = planning_grid(&self.grid, &[*position, *goal], inflate as i32 + 2)
-            .ok_or(())
-            .and_then(|g| plan_inflated(&g, position, goal, inflate).map_err(|_| ()));
+        let planned = plan_inflated(&self.camera.grid(), position, goal, inflate);
         self.timings.record_since("plan", started);
         match planned {
             Ok(path) => {
                 self.tracker.set_path(&path.waypoints_m);
                 self.plans.push(path);
             }
-            Err(()) => self.plan_failures += 1,
+            Err(_) => self.plan_failures += 1,
         }
         self.next_replan_s = t + self.replan_period_s;
     }
@@ -417,15 +418,18 @@ struct Scores {
     max_cross_track_m: f64,
     localisation_errors_m: Vec<f64>,
     blocked_steps: usize,
+    frames: Vec<FrameRecord>,
 }
 
 impl Scores {
-    /// Records the true and estimated poses at time `t`.
-    fn record_poses(&mut self, t: f64, truth: Pose3, estimate: Pose3) {
-        let error = (truth.translation.vector - estimate.translation.vector).norm();
-        self.localisation_errors_m.push(error);
+    /// Records the true pose at time `t` and the estimate when VO gave one.
+    fn record_poses(&mut self, t: f64, truth: Pose3, estimate: Option<Pose3>) {
+        if let Some(estimate) = estimate {
+            let error = (truth.translation.vector - estimate.translation.vector).norm();
+            self.localisation_errors_m.push(error);
+            self.estimate.push(t, estimate);
+        }
         self.ground_truth.push(t, truth);
-        self.estimate.push(t, estimate);
     }
 
     /// The outcome of a run that ended at `time_s`, `final_distance_m` from the goal.
@@ -448,10 +452,11 @@ impl Scores {
             final_distance_m,
             plan_failures: state.plan_failures,
             blocked_steps: self.blocked_steps,
-            slam_stats: *state.slam.stats(),
+            camera_stats: state.camera.stats,
+            frames: self.frames,
+            grid: state.camera.grid(),
             timings: state.timings,
             plans: state.plans,
-            grid: state.grid,
             ground_truth: self.ground_truth,
             estimate: self.estimate,
             optimal,
@@ -474,26 +479,46 @@ pub fn run_nav_loop(
     config.validate()?;
     let mut robot = Robot::new(world, config, seed)?;
     let start = robot.truth;
-    let inflate = config.inflate_cells();
-    let truth_grid = rasterise_world(&robot.sim, config.grid.resolution_m, robot.base_height_m)?;
+    let inflate = config.inflate_cells(config.grid.resolution_m);
+    let truth_grid = rasterise_world(&robot.sim, TRUTH_RESOLUTION_M, robot.base_height_m)?;
     let start_m = Point2::from(start.translation.vector);
-    let optimal = plan_inflated(&truth_grid, &start_m, &goal, inflate)
-        .with_context(|| format!("goal {},{} on the true map of the world", goal.x, goal.y))?;
-    let mut state = LoopState::new(config, start)?;
-    let rate_hz = config.sim.lidar.rate_hz;
+    let optimal = plan_inflated(
+        &truth_grid,
+        &start_m,
+        &goal,
+        config.inflate_cells(TRUTH_RESOLUTION_M),
+    )
+    .with_context(|| format!("goal {},{} on the true map of the world", goal.x, goal.y))?;
+    let mut state = LoopState::new(config, &robot.truth3(&start), &goal)?;
+    let rate_hz = config.sim.rgbd.rate_hz;
     let dt = 1.0 / rate_hz;
     let mut scores = Scores::default();
     let mut t = 0.0;
     for index in 0.. {
         t = index as f64 / rate_hz;
-        let scan = robot.scan(index, t);
-        let pose = state.localise(&scan)?;
-        scores.record_poses(t, robot.truth3(&robot.truth), robot.truth3(&pose));
-        let position = Point2::from(pose.translation.vector);
-        let truth_position = Point2::from(robot.truth.translation.vector);
-        state.replan(t, &position, &goal, inflate);
         let started = Instant::now();
-        let command = state.tracker.step(Some(&pose), dt);
+        let (color, depth) = robot.frame(index);
+        state.timings.record_since("render", started);
+        let frame = state
+            .camera
+            .process(index, t, color, &depth, &mut state.timings);
+        let truth3 = robot.truth3(&robot.truth);
+        let estimate = frame.world_from_base;
+        scores.record_poses(t, truth3, estimate.as_ref().map(|p| robot.truth3(p)));
+        scores.frames.push(FrameRecord {
+            t_s: t,
+            truth: robot.truth,
+            estimate,
+            status: frame.status,
+        });
+        if let Some(pose) = &estimate {
+            if frame.gate_open {
+                state.replan(t, &Point2::from(pose.translation.vector), &goal, inflate);
+            }
+        }
+        let started = Instant::now();
+        let command = state.tracker.step(estimate.as_ref(), dt);
+        let truth_position = Point2::from(robot.truth.translation.vector);
         state.timings.record_since("track", started);
         if let Some(d) = distance_to_polyline(&truth_position, state.tracker.path()) {
             scores.max_cross_track_m = scores.max_cross_track_m.max(d);
@@ -533,17 +558,6 @@ mod tests {
         assert!((d(2.5, 1.0) - 0.5).abs() < 1e-12);
         assert!((d(-1.0, 0.0) - 1.0).abs() < 1e-12);
         assert_eq!(distance_to_polyline(&Point2::origin(), &[]), None);
-    }
-
-    #[test]
-    fn planning_grid_holds_the_goal_beyond_the_known_cells() {
-        let grid = OccupancyGrid::new(OccupancyGridConfig::default()).unwrap();
-        let goal = Point2::new(3.0, -2.0);
-        let tri = planning_grid(&grid, &[Point2::origin(), goal], 2).unwrap();
-        assert!(tri.cell_at(&goal).is_some());
-        assert!(tri.cells().iter().all(|c| *c == Occupancy::Unknown));
-        let path = plan_inflated(&tri, &Point2::origin(), &goal, 3).unwrap();
-        assert!(path.through_unknown && path.length_m > 3.5);
     }
 
     /// The whole loop on the small world (seed 1): reaches the built-in goal without touching

@@ -1,0 +1,214 @@
+//! Localisation and mapping of the closed loop from the robot's RGB-D camera.
+//!
+//! Each frame goes through RGB-D visual odometry ([`slamkit_vo`]: KLT features lifted by
+//! depth, RANSAC + Gauss–Newton motion against the local map), whose camera pose gives the
+//! base pose through the known camera mount. The frame's depth (every `depth_step_px`-th
+//! pixel) is then inserted into a floor grid ([`FloorGrid`], Bayesian log-odds with Bresenham
+//! free rays, obstacles in the 0.1–1.0 m band; Hornung et al., "OctoMap", 2013).
+//!
+//! Floor alignment comes from the known camera mount, not from a floor-plane fit
+//! ([`slamkit_map::floor`]): the robot drives on a flat floor, so only the planar part of the VO
+//! pose (x, y, yaw) is kept and the camera's height, pitch and roll are the mount's. A RANSAC
+//! fit would give the same frame up to noise when the floor is in view, but the mount also holds
+//! when the first frames see only a wall, and it stops VO's small pitch drift from tilting the
+//! map: 1° of pitch moves a point 4 m away by 7 cm in height, enough to lift floor points into
+//! the obstacle band.
+//!
+//! The floor grid's frame has the height along −y and the floor along (x, z); the world's floor
+//! is (x, y) with z up, so points go through [`map_from_world`] and the grid's cells are the
+//! world's (x, y) cells.
+//!
+//! Mapping (and the loop's planning) pause while the camera's angular rate, from consecutive
+//! VO poses, exceeds the gate's limits ([`MotionGate`]); a frame VO fails on gives no pose, and
+//! the tracker then commands zero.
+
+use anyhow::Context;
+use nalgebra::{Matrix3, Point2, Rotation3, UnitQuaternion};
+use serde::Serialize;
+use slamkit_core::image::{Image, RgbImage};
+use slamkit_core::pose::pose3_to_pose2;
+use slamkit_core::{Pose2, Pose3, StageTimings};
+use slamkit_map::floor_grid::{FloorGrid, FloorGridConfig, FloorGridMethod};
+use slamkit_map::TriGrid;
+use slamkit_nav::gating::angular_rate;
+use slamkit_nav::{MotionGate, MotionGateConfig};
+use slamkit_sim::RgbdCameraConfig;
+use slamkit_vo::frame::{Preprocessor, Rig, SensorImages};
+use slamkit_vo::{FrameStatus, Odometry, VoConfig};
+use std::time::Instant;
+
+/// `map_from_world`: the world's (x, y, z-up) axes onto the floor grid's (x, z, −y).
+pub fn map_from_world() -> Pose3 {
+    let r = Matrix3::new(
+        1.0, 0.0, 0.0, //
+        0.0, 0.0, -1.0, //
+        0.0, 1.0, 0.0,
+    );
+    Pose3::from_parts(
+        nalgebra::Translation3::identity(),
+        UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(r)),
+    )
+}
+
+/// Frame counters of the camera.
+#[derive(Debug, Clone, Copy, Default, Serialize)]
+pub struct CameraStats {
+    /// Frames rendered.
+    pub frames: usize,
+    /// Frames VO tracked (or re-initialised on).
+    pub tracked: usize,
+    /// Frames VO failed on (no pose: the tracker stopped).
+    pub failed: usize,
+    /// VO (re-)initialisations.
+    pub initialisations: usize,
+    /// Tracked frames not mapped because the camera turned too fast.
+    pub gated: usize,
+}
+
+/// VO, the floor grid and the motion gate.
+pub struct CameraSlam {
+    preprocessor: Preprocessor,
+    odometry: Odometry,
+    base_from_camera: Pose3,
+    base_height_m: f64,
+    intrinsics: slamkit_core::camera::Intrinsics,
+    depth_step_px: usize,
+    grid: FloorGrid,
+    gate: MotionGate,
+    previous: Option<(f64, Pose3)>,
+    /// Frame counters.
+    pub stats: CameraStats,
+}
+
+/// A frame's outcome: the estimated `world_from_base` (`None` when VO lost it, with the
+/// reason) and whether the gate let it be mapped (and planning run).
+pub struct FrameOutcome {
+    /// Estimated planar pose of the base in the world.
+    pub world_from_base: Option<Pose2>,
+    /// What VO made of the frame.
+    pub status: FrameStatus,
+    /// Mapping and planning may run.
+    pub gate_open: bool,
+}
+
+impl CameraSlam {
+    /// Starts at the known `world_from_base` with an empty floor grid covering the floor
+    /// rectangle `[min, max]` (world x, y).
+    ///
+    /// # Errors
+    /// An invalid VO, grid or gate configuration.
+    pub fn new(
+        camera: &RgbdCameraConfig,
+        vo: &VoConfig,
+        grid: &FloorGridConfig,
+        gate: &MotionGateConfig,
+        depth_step_px: usize,
+        world_from_base: &Pose3,
+        bounds: [Point2<f64>; 2],
+    ) -> anyhow::Result<Self> {
+        let k = camera.intrinsics;
+        let preprocessor = Preprocessor::new(vo, Rig::Rgbd { color: k, depth: k })
+            .context("visual odometry configuration")?;
+        let base_from_camera = camera.mount.base_from_camera();
+        let [min, max] = bounds;
+        let cells = |span: f64| (span / grid.resolution_m).ceil().max(1.0) as usize;
+        let floor = FloorGrid::new(
+            cells(max.x - min.x),
+            cells(max.y - min.y),
+            min,
+            grid.clone(),
+        )
+        .context("floor grid configuration")?;
+        Ok(Self {
+            preprocessor,
+            odometry: Odometry::new(vo, world_from_base * base_from_camera),
+            base_from_camera,
+            base_height_m: world_from_base.translation.z,
+            intrinsics: k,
+            depth_step_px,
+            grid: floor,
+            gate: MotionGate::new(gate.clone()).context("motion gate configuration")?,
+            previous: None,
+            stats: CameraStats::default(),
+        })
+    }
+
+    /// Localises with frame `index` taken at `t`, then maps its depth when the gate is open.
+    pub fn process(
+        &mut self,
+        index: usize,
+        t: f64,
+        color: RgbImage,
+        depth_m: &Image<f32>,
+        timings: &mut StageTimings,
+    ) -> FrameOutcome {
+        self.stats.frames += 1;
+        let started = Instant::now();
+        let images = SensorImages::Rgbd {
+            color,
+            depth_m: depth_m.clone(),
+        };
+        let status = match self.preprocessor.prepare(index, t, images) {
+            Ok(frame) => self.odometry.track(frame),
+            Err(reason) => self.odometry.skip(reason),
+        };
+        timings.record_since("vo", started);
+        match status {
+            FrameStatus::Failed(_) => {
+                self.stats.failed += 1;
+                self.previous = None;
+                return FrameOutcome {
+                    world_from_base: None,
+                    status,
+                    gate_open: false,
+                };
+            }
+            FrameStatus::Initialised { .. } => self.stats.initialisations += 1,
+            FrameStatus::Tracked { .. } => {}
+        }
+        self.stats.tracked += 1;
+        let world_from_camera = self.odometry.pose();
+        let rate = self
+            .previous
+            .and_then(|(t0, p0)| angular_rate(&p0, &world_from_camera, t - t0));
+        // with no previous pose (the first frame, or after a failure) the gate keeps its state
+        let gate_open = match self.previous {
+            Some((t0, _)) => self.gate.update(rate.as_ref(), t - t0),
+            None => self.gate.is_open(),
+        };
+        self.previous = Some((t, world_from_camera));
+        let world_from_base =
+            pose3_to_pose2(&(world_from_camera * self.base_from_camera.inverse()));
+        if gate_open {
+            let started = Instant::now();
+            let map_from_camera =
+                map_from_world() * self.planar(&world_from_base) * self.base_from_camera;
+            self.grid.insert_depth(
+                depth_m,
+                &self.intrinsics,
+                &map_from_camera,
+                self.depth_step_px,
+            );
+            timings.record_since("map", started);
+        } else {
+            self.stats.gated += 1;
+        }
+        FrameOutcome {
+            world_from_base: Some(world_from_base),
+            status,
+            gate_open,
+        }
+    }
+
+    /// The 3D base pose of a planar one at the base's known height.
+    fn planar(&self, pose: &Pose2) -> Pose3 {
+        let mut p = slamkit_core::pose::pose2_to_pose3(pose);
+        p.translation.z = self.base_height_m;
+        p
+    }
+
+    /// The map so far as a tri-state grid over the world's (x, y).
+    pub fn grid(&self) -> TriGrid {
+        self.grid.to_tri_grid(FloorGridMethod::LogOdds)
+    }
+}
