@@ -7,9 +7,9 @@
 //! * [`motion`]: a drone flying waypoints `x y z yaw` (tilting as it accelerates) and a
 //!   differential-drive robot; ground truth `world_from_base` at any time.
 //! * Sensors with seeded noise: [`lidar`] (planar, tilting with the robot), [`range_finder`]
-//!   (up and down), [`odometry`] (drifting), [`attitude`] (roll and pitch), [`camera`] (RGB-D:
-//!   colour and Kinect-like depth) and [`stereo`] (a rectified grey pair), both ray-cast per
-//!   pixel: [`Simulation::rgbd_frame`], [`Simulation::stereo_frame`].
+//!   (up and down), [`odometry`] (drifting), [`attitude`] (roll, pitch, gyro heading),
+//!   [`camera`] (RGB-D: colour and Kinect-like depth) and [`stereo`] (a rectified grey pair),
+//!   both ray-cast per pixel: [`Simulation::rgbd_frame`], [`Simulation::stereo_frame`].
 //! * [`relations`]: pairs of scans for benchmark relations files.
 //! * [`simulation`]: a robot, a world and its sensors; [`Simulation::lidar_run`] gives the scans,
 //!   ranges and ground truth of a whole run.
@@ -42,7 +42,7 @@ pub mod stereo;
 pub mod texture;
 pub mod world;
 
-pub use attitude::{AttitudeConfig, AttitudeReading};
+pub use attitude::{AttitudeConfig, AttitudeReading, GyroConfig, YawGyro};
 pub use camera::{CameraMount, RgbdCameraConfig, RgbdFrame, View, TUM_FR1_INTRINSICS};
 pub use error::SimError;
 pub use lidar::Lidar2dConfig;

@@ -2,12 +2,13 @@
 //!
 //! Every random draw comes from a ChaCha8 stream chosen by (seed, sensor, sample index), so any
 //! sample can be produced on its own, in any order or in parallel, and the same seed always
-//! gives the same readings. Odometry, a running sum, is the one sequential stream.
+//! gives the same readings. Odometry and the gyro's integrated heading, running sums, are the
+//! sequential streams.
 //!
 //! Sensor times are whole microseconds (`k · period`), stored as `µs / 1e6`, so that printing
 //! them with 6 decimals (CARMEN, TUM) and parsing them back gives the same numbers.
 
-use crate::attitude::{AttitudeConfig, AttitudeReading};
+use crate::attitude::{AttitudeConfig, AttitudeReading, YawGyro};
 use crate::camera::{render_rgbd, RgbdCameraConfig, RgbdFrame};
 use crate::lidar::Lidar2dConfig;
 use crate::motion::{DiffDriveConfig, DroneConfig, RobotState, WaypointMotion};
@@ -96,6 +97,8 @@ pub enum Stream {
     Attitude = 7,
     /// Stereo image noise.
     Stereo = 8,
+    /// Yaw-rate gyro noise and bias (one sequential stream).
+    Gyro = 9,
 }
 
 /// The lidar part of a run: what 2D lidar SLAM needs.
@@ -105,7 +108,7 @@ pub struct LidarRun {
     pub scans: Vec<LaserScan>,
     /// Range finder readings.
     pub ranges: Vec<RangeReading>,
-    /// Roll and pitch at every scan time.
+    /// Roll, pitch and integrated gyro heading at every scan time.
     pub attitudes: Vec<AttitudeReading>,
     /// True `world_from_base` at every scan time.
     pub ground_truth: Trajectory,
@@ -225,11 +228,20 @@ impl Simulation {
             .collect()
     }
 
-    /// Attitude reading number `index` at `timestamp`.
-    pub fn attitude_reading(&self, index: usize, timestamp: f64) -> AttitudeReading {
-        let pose = self.state_at(timestamp).world_from_base;
-        let mut rng = self.rng(Stream::Attitude, index as u64);
-        self.config.attitude.read(&pose, timestamp, &mut rng)
+    /// Attitude readings at `times` (sorted), the gyro heading integrated from the first.
+    pub fn attitude_readings(&self, times: &[f64]) -> Vec<AttitudeReading> {
+        let mut gyro = YawGyro::new(self.config.attitude.gyro.clone(), self.rng(Stream::Gyro, 0));
+        let true_yaw = |t: f64| self.state_at(t).world_from_base.rotation.euler_angles().2;
+        times
+            .iter()
+            .enumerate()
+            .map(|(i, &t)| {
+                let pose = self.state_at(t).world_from_base;
+                let yaw = gyro.integrate_to(t, true_yaw);
+                let mut rng = self.rng(Stream::Attitude, i as u64);
+                self.config.attitude.read(&pose, t, yaw, &mut rng)
+            })
+            .collect()
     }
 
     /// Range finder readings at `times`.
@@ -248,11 +260,7 @@ impl Simulation {
         LidarRun {
             scans: self.lidar_scans(&times),
             ranges: self.range_readings(&self.sample_times(self.config.range_finder.rate_hz)),
-            attitudes: times
-                .iter()
-                .enumerate()
-                .map(|(i, &t)| self.attitude_reading(i, t))
-                .collect(),
+            attitudes: self.attitude_readings(&times),
             ground_truth: self.ground_truth(&times),
         }
     }
