@@ -13,7 +13,8 @@
 //!   matched: the tilted scan plane cuts the room at other heights; the pose follows the
 //!   motion prior;
 //! * the motion prior is the drone's recent velocity, carried through take-offs and stops by
-//!   the acceleration its tilt shows ([`velocity`]), or the scans' odometry if asked;
+//!   the acceleration its tilt shows, turning as the IMU's yaw-rate gyro does when there is one
+//!   ([`velocity`]), or the scans' odometry if asked;
 //! * on a layer change the scan is first aligned by ICP to the map of the layer the drone comes
 //!   from, so that a new map starts where the old one ends and an old one is re-entered from
 //!   where the drone is (an addition to the seed method, which started new layers from the
@@ -155,6 +156,9 @@ pub struct LayerInput<'a> {
     pub roll_rad: f64,
     /// Pitch of the base \[rad\].
     pub pitch_rad: f64,
+    /// Heading integrated from the IMU's yaw-rate gyro \[rad\] (any origin; only its change
+    /// between scans is used), `None` without a gyro.
+    pub gyro_yaw_rad: Option<f64>,
 }
 
 /// How one scan was used.
@@ -226,6 +230,8 @@ pub struct LayeredIcpSlam {
     /// Time of `world_from_base` \[s\].
     last_time_s: Option<f64>,
     last_odometry: Option<Pose2>,
+    /// Gyro heading of the last scan \[rad\].
+    last_gyro_yaw: Option<f64>,
     velocity: VelocityTracker,
     /// Time of the last accepted match \[s\].
     last_match_s: Option<f64>,
@@ -245,6 +251,7 @@ impl LayeredIcpSlam {
             world_from_base: Pose2::identity(),
             last_time_s: None,
             last_odometry: None,
+            last_gyro_yaw: None,
             velocity: VelocityTracker::new(config.velocity_window_s),
             last_match_s: None,
             stats: LayeredStats::default(),
@@ -264,7 +271,7 @@ impl LayeredIcpSlam {
             .height
             .update(vertical(input.up_m), vertical(input.down_m));
         let accel = tilt_acceleration(roll, pitch);
-        let predicted = self.predict(input.scan, &accel);
+        let predicted = self.predict(input.scan, &accel, input.gyro_yaw_rad);
         let tilted = cos_tilt.acos() > self.config.max_tilt_rad;
         let (pose, status) = match height {
             None => {
@@ -304,14 +311,21 @@ impl LayeredIcpSlam {
     }
 
     /// The last pose moved by the odometry increment, or by the recent velocity and the
-    /// acceleration `accel` the tilt shows.
-    fn predict(&mut self, scan: &LaserScan, accel: &Vector2<f64>) -> Pose2 {
+    /// acceleration `accel` the tilt shows, turning as the gyro heading `gyro_yaw` did.
+    fn predict(&mut self, scan: &LaserScan, accel: &Vector2<f64>, gyro_yaw: Option<f64>) -> Pose2 {
         let odometry = scan.odometry.filter(|_| self.config.use_odometry);
+        let gyro_yaw = gyro_yaw.filter(|y| y.is_finite());
+        let turn = self
+            .last_gyro_yaw
+            .zip(gyro_yaw)
+            .map(|(prev, cur)| cur - prev);
+        self.last_gyro_yaw = gyro_yaw;
         let predicted = match (self.last_odometry, odometry) {
             (Some(prev), Some(cur)) => self.world_from_base * (prev.inverse() * cur),
             _ => {
                 let dt = self.last_time_s.map_or(0.0, |t| scan.timestamp - t);
-                self.velocity.advance(&self.world_from_base, dt, accel)
+                self.velocity
+                    .advance(&self.world_from_base, dt, accel, turn)
             }
         };
         if odometry.is_some() {

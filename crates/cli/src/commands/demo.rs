@@ -251,6 +251,7 @@ fn run_layered(
             down_m: range.and_then(|r| r.down_m),
             roll_rad: attitude.roll_rad,
             pitch_rad: attitude.pitch_rad,
+            gyro_yaw_rad: Some(attitude.gyro_yaw_rad),
         };
         estimates.push(slam.process(&input));
         bar.inc(1);

@@ -123,6 +123,7 @@ fn one_map_per_layer_reused_on_return_and_tilted_scans_skipped() {
             down_m: Some((step.z_m - 0.03) / step.pitch_rad.cos()),
             roll_rad: 0.0,
             pitch_rad: step.pitch_rad,
+            gyro_yaw_rad: None,
         });
         if k == 20 {
             assert_eq!(est.status, LayerScanStatus::Tilted);
@@ -254,4 +255,53 @@ fn the_particle_filter_picks_the_layer_whose_particles_gather() {
     assert!(spreads[1] > 2.0 * spreads[0], "spreads {spreads:?}");
     // no candidate with a map is an error, not a panic
     assert!(LayerLocaliser::new(&maps, &[7], &config).is_err());
+}
+
+/// Heading error at the end of a turn in place beside a lone pillar, whose scans do not pin the
+/// rotation about the pillar's centre, with and without the gyro's heading (biased by
+/// 0.01 rad/s).
+fn turn_beside_a_pillar(gyro: bool) -> (f64, f64) {
+    let pillar: Vec<(f64, f64)> = (0..24)
+        .map(|i| {
+            let a = f64::from(i) * std::f64::consts::TAU / 24.0;
+            (1.0 + 0.3 * a.cos(), 0.3 * a.sin())
+        })
+        .collect();
+    let world = SegmentWorld::polygon(&pillar);
+    let mut slam = LayeredIcpSlam::new(LayeredSlamConfig::default()).unwrap();
+    let mut last = Pose2::identity();
+    let mut est = None;
+    // hover for 2 s, then turn at 0.4 rad/s for 2 s
+    for k in 0..40 {
+        let t = 0.1 * f64::from(k);
+        let yaw = 0.4 * (t - 2.0).max(0.0);
+        last = Pose2::new(Vector2::zeros(), yaw);
+        let mut scan = world.scan(&last, 512, 1.5 * std::f64::consts::PI, 3.0);
+        scan.timestamp = t;
+        est = Some(slam.process(&LayerInput {
+            scan: &scan,
+            up_m: Some(1.0),
+            down_m: Some(0.5),
+            roll_rad: 0.0,
+            pitch_rad: 0.0,
+            gyro_yaw_rad: gyro.then_some(yaw + 0.01 * t),
+        }));
+    }
+    let est = est.unwrap().world_from_base;
+    let (_, _, yaw) = est.rotation.euler_angles();
+    let position = est.translation.vector.xy().norm();
+    assert!(slam.stats().scans_degenerate > 0);
+    ((yaw - last.rotation.angle()).abs(), position)
+}
+
+#[test]
+fn beside_a_pillar_the_heading_follows_the_gyro() {
+    let (with_gyro, with_position) = turn_beside_a_pillar(true);
+    let (without, without_position) = turn_beside_a_pillar(false);
+    eprintln!("heading error with gyro {with_gyro} ({with_position} m), without {without} ({without_position} m)");
+    assert!(
+        with_gyro < 0.05 && with_position < 0.05,
+        "{with_gyro} {with_position}"
+    );
+    assert!(without > 0.1, "{without}");
 }
