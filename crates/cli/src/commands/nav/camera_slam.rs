@@ -212,3 +212,15 @@ impl CameraSlam {
         self.grid.to_tri_grid(FloorGridMethod::LogOdds)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Point3;
+
+    #[test]
+    fn map_frame_has_height_along_minus_y_and_the_floor_along_x_z() {
+        let p = map_from_world() * Point3::new(1.0, 2.0, 0.3);
+        assert!((p - Point3::new(1.0, -0.3, 2.0)).norm() < 1e-12);
+    }
+}

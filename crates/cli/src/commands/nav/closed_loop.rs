@@ -559,25 +559,4 @@ mod tests {
         assert!((d(-1.0, 0.0) - 1.0).abs() < 1e-12);
         assert_eq!(distance_to_polyline(&Point2::origin(), &[]), None);
     }
-
-    /// The whole loop on the small world (seed 1): reaches the built-in goal without touching
-    /// anything, close to the shortest path.
-    #[test]
-    fn reaches_the_goal_in_the_small_world() {
-        let world = World::builtin("small").unwrap();
-        let goal = Point2::new(world.nav_goal[0], world.nav_goal[1]);
-        let outcome = run_nav_loop(world, goal, 1, &NavLoopConfig::default()).unwrap();
-        assert!(
-            outcome.reached,
-            "{} m from the goal",
-            outcome.final_distance_m
-        );
-        assert_eq!(outcome.blocked_steps, 0);
-        assert!(outcome.path_length_m < 1.25 * outcome.optimal.length_m);
-        assert!(
-            outcome.max_cross_track_m < 0.25,
-            "{}",
-            outcome.max_cross_track_m
-        );
-    }
 }
