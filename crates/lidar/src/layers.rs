@@ -63,6 +63,8 @@ pub struct LayeredSlamConfig {
     pub use_odometry: bool,
     /// The constant-velocity prior averages the motion over this long \[s\].
     pub velocity_window_s: f64,
+    /// Top horizontal speed of the constant-velocity prior \[m/s\] (above the drone's).
+    pub max_speed_mps: f64,
     /// A scan match corrects the prediction only along directions in which the scan's
     /// information matrix has at least this eigenvalue (about that many points pinning the
     /// pose; [`degeneracy`]); 0 keeps every match whole.
@@ -92,6 +94,7 @@ impl Default for LayeredSlamConfig {
             align_new_layer: true,
             use_odometry: false,
             velocity_window_s: 1.0,
+            max_speed_mps: 0.3,
             min_constraint: 20.0,
             gate_m: 0.05,
             gate_growth_mps: 0.1,
@@ -124,6 +127,7 @@ impl LayeredSlamConfig {
             .or_else(|| {
                 [
                     ("min_constraint", self.min_constraint),
+                    ("max_speed_mps", self.max_speed_mps),
                     ("gate_m", self.gate_m),
                     ("gate_growth_mps", self.gate_growth_mps),
                     ("gate_rad", self.gate_rad),
@@ -252,7 +256,7 @@ impl LayeredIcpSlam {
             last_time_s: None,
             last_odometry: None,
             last_gyro_yaw: None,
-            velocity: VelocityTracker::new(config.velocity_window_s),
+            velocity: VelocityTracker::new(config.velocity_window_s, config.max_speed_mps),
             last_match_s: None,
             stats: LayeredStats::default(),
             timings: StageTimings::default(),

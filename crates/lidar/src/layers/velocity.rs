@@ -67,17 +67,20 @@ pub fn tilt_acceleration(roll_rad: f64, pitch_rad: f64) -> Vector2<f64> {
 #[derive(Debug, Clone)]
 pub struct VelocityTracker {
     window_s: f64,
+    max_speed_mps: f64,
     history: VecDeque<(f64, Pose2)>,
     /// Current twist `(vx, vy, ω)` \[m/s, m/s, rad/s\].
     velocity: Vector3<f64>,
 }
 
 impl VelocityTracker {
-    /// A tracker averaging over the last `window_s` seconds; standing still until it has two
-    /// poses.
-    pub fn new(window_s: f64) -> Self {
+    /// A tracker averaging over the last `window_s` seconds, whose horizontal speed is at most
+    /// `max_speed_mps` (the drone's top speed: matches that slid along a direction the scans
+    /// do not pin cannot run the prior away); standing still until it has two poses.
+    pub fn new(window_s: f64, max_speed_mps: f64) -> Self {
         Self {
             window_s,
+            max_speed_mps,
             history: VecDeque::new(),
             velocity: Vector3::zeros(),
         }
@@ -102,8 +105,14 @@ impl VelocityTracker {
             let span = t1 - t0;
             if span > 0.0 {
                 let lag = accel * (span / 2.0);
-                self.velocity =
-                    se2_log(&(p0.inverse() * p1)) / span + Vector3::new(lag.x, lag.y, 0.0);
+                let v = se2_log(&(p0.inverse() * p1)) / span + Vector3::new(lag.x, lag.y, 0.0);
+                let speed = v.xy().norm();
+                let scale = if speed > self.max_speed_mps {
+                    self.max_speed_mps / speed
+                } else {
+                    1.0
+                };
+                self.velocity = Vector3::new(v.x * scale, v.y * scale, v.z);
             }
         }
     }
@@ -152,7 +161,7 @@ mod tests {
         // flying 0.1 m/s sideways while turning at 0.4 rad/s, seen every 0.1 s
         let twist = Vector3::new(0.0, 0.1, 0.4);
         let start = Pose2::new(Vector2::new(1.0, 2.0), 0.3);
-        let mut tracker = VelocityTracker::new(1.0);
+        let mut tracker = VelocityTracker::new(1.0, 1.0);
         let level = Vector2::zeros();
         for k in 0..15 {
             let t = 0.1 * f64::from(k);
@@ -170,15 +179,18 @@ mod tests {
         let truth = start * se2_exp(&(twist * 2.1));
         assert!((predicted.translation.vector - truth.translation.vector).norm() < 1e-9);
         // a restarted log starts a new history: no velocity from one pose
-        let mut restarted = VelocityTracker::new(1.0);
+        let mut restarted = VelocityTracker::new(1.0, 1.0);
         restarted.observe(0.0, start, &level);
         assert_eq!(restarted.twist(), Vector3::zeros());
+        // a jump of 1 m in 0.5 s is capped at the top speed, the turn rate kept
+        restarted.observe(0.5, start * se2_exp(&Vector3::new(1.0, 0.0, 0.1)), &level);
+        assert!((restarted.twist() - Vector3::new(1.0, 0.0, 0.2)).norm() < 1e-12);
     }
 
     #[test]
     fn tilt_carries_the_velocity_through_a_stop() {
         // flying forward at 0.1 m/s, then braking at 0.1 m/s² (nose up) for one second
-        let mut tracker = VelocityTracker::new(1.0);
+        let mut tracker = VelocityTracker::new(1.0, 1.0);
         let level = Vector2::zeros();
         for k in 0..11 {
             let t = 0.1 * f64::from(k);
