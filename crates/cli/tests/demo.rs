@@ -4,7 +4,8 @@
 //! promises. Needs no data set; runs only in release builds (a debug build takes many minutes).
 //! `small` and `large` are held here; `office` does not meet its bounds yet (BENCHMARKS.md,
 //! "Simulated drone": with the 3 m lidar its scans often pin only two of the three pose
-//! directions while the drone turns, and nothing else observes the turn).
+//! directions; the gyro now holds the heading, but nothing observes the translation along the
+//! free direction).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers fail loudly
 
 use std::path::Path;
