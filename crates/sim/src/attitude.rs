@@ -24,6 +24,7 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 use serde::{Deserialize, Serialize};
+use slamkit_core::pose::wrap_angle;
 use slamkit_core::Pose3;
 
 /// Noise of the attitude estimate.
@@ -147,16 +148,6 @@ impl YawGyro {
         }
         self.time_s = Some(t_s);
         self.yaw_rad
-    }
-}
-
-/// `angle` in (−π, π].
-fn wrap_angle(angle: f64) -> f64 {
-    let wrapped = angle.rem_euclid(std::f64::consts::TAU);
-    if wrapped > std::f64::consts::PI {
-        wrapped - std::f64::consts::TAU
-    } else {
-        wrapped
     }
 }
 
