@@ -20,9 +20,12 @@
 //! particle filter's best trajectory and map), `errors_icp.png` and `errors_pf.png` (top view
 //! and error over time), `report.json` (`metrics.{icp,pf}.position_error_mean_m`,
 //! `metrics.{icp,pf}.position_error_max_m`) and
-//! `report.html` (all of it on one page, images embedded).
+//! `report.html` (all of it on one page, images embedded). The same flight seen by the
+//! drone's simulated RGB-D camera goes through RGB-D visual odometry ([`vo_run`]): `rgbd/` (TUM
+//! RGB-D folder), `trajectory_vo.tum`, `errors_vo.png`, `metrics.vo.ate_rmse_m`.
 
 mod html;
+mod vo_run;
 
 use crate::output::{peak_rss_bytes, prepare_out_dir, progress_bar, timings_json, write_report};
 use anyhow::Context;
@@ -161,6 +164,16 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         plots.push((m.title, m.mean_m(), m.max_m(), plot));
     }
 
+    let vo_bar = progress_bar(0, "rgbd-vo");
+    let vo = vo_run::run_vo_demo(&sim.world, args.seed, &out, || vo_bar.inc(1))?;
+    vo_bar.finish_and_clear();
+    plots.push((
+        vo.title,
+        vo.ate.stats.mean,
+        vo.ate.stats.max,
+        vo.plot.clone(),
+    ));
+
     let stats = slam.stats();
     let report = json!({
         "input": { "world": args.world.name(), "seed": args.seed, "duration_s": sim.duration_s() },
@@ -190,7 +203,12 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
             "pf_total_s": pf_s,
         },
         "peak_rss_bytes": peak_rss_bytes(),
-        "metrics": { "icp": metrics_json(&icp, &run), "pf": metrics_json(&pf, &run) },
+        "metrics": {
+            "icp": metrics_json(&icp, &run),
+            "pf": metrics_json(&pf, &run),
+            "vo": vo_run::metrics_json(&vo),
+        },
+        "vo": vo_run::report_json(&vo),
     });
     write_report(&out, &report)?;
     let page = html::Page {
@@ -222,14 +240,13 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         run.ground_truth.path_length_m(),
         layer_files.len()
     );
-    for m in [&icp, &pf] {
-        println!(
-            "{:<22} {:>8.3} m  {:>7.3} m",
-            m.title,
-            m.mean_m(),
-            m.max_m()
-        );
+    for (title, mean, max, _) in &page.methods {
+        println!("{title:<22} {mean:>8.3} m  {max:>7.3} m");
     }
+    println!(
+        "RGB-D VO ATE RMSE {:.3} m (SE(3)-aligned)",
+        vo.ate.stats.rmse
+    );
     println!("outputs in {}", out.display());
     Ok(())
 }
