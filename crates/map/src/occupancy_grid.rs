@@ -302,6 +302,13 @@ impl OccupancyGrid {
         self.store.get(cell.x, cell.y)
     }
 
+    /// Log-odds of the `len` cells from `first` along +x, when they lie in one tile of the grown
+    /// area; `None` otherwise (read them with [`Self::log_odds`]).
+    #[inline]
+    pub fn log_odds_row(&self, first: CellIndex, len: usize) -> Option<&[f32]> {
+        self.store.row(first.x, first.y, len)
+    }
+
     /// Occupancy probability of `cell`; `None` outside the grid.
     pub fn probability(&self, cell: CellIndex) -> Option<f64> {
         self.log_odds(cell).map(probability_from_log_odds)

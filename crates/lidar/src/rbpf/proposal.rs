@@ -27,6 +27,7 @@ use rand_distr::StandardNormal;
 use serde::{Deserialize, Serialize};
 use slamkit_core::pose::wrap_angle;
 use slamkit_core::{LaserScan, Pose2};
+use slamkit_map::likelihood_field::SquaredDistanceTable;
 use slamkit_map::occupancy_grid::log_odds_from_probability;
 use slamkit_map::{CellIndex, LikelihoodFieldConfig, OccupancyGrid};
 
@@ -159,19 +160,25 @@ pub struct Score {
     pub matched: usize,
 }
 
+/// Widest kernel row: `kernel_cells` is at most 8.
+const MAX_ROW: usize = 17;
+
 /// Scores scans against one grid; see the module documentation.
 pub struct GridScorer<'a> {
     grid: &'a OccupancyGrid,
     occupied_log_odds: f32,
     kernel: i32,
-    model: LikelihoodFieldConfig,
+    table: SquaredDistanceTable,
     miss: f64,
+    origin_m: Vector2<f64>,
+    inv_resolution: f64,
+    resolution_m2: f64,
 }
 
 impl<'a> GridScorer<'a> {
     /// A scorer over `grid`.
     pub fn new(grid: &'a OccupancyGrid, config: &ProposalConfig) -> Self {
-        let kernel = config.kernel_cells as i32;
+        let kernel = config.kernel_cells.min(8) as i32;
         let model = LikelihoodFieldConfig {
             sigma_hit_m: config.sigma_m,
             z_hit: config.z_hit,
@@ -180,12 +187,16 @@ impl<'a> GridScorer<'a> {
             max_distance_m: f64::from(kernel + 1) * grid.resolution_m(),
             obstacle_min_probability: config.occupied_probability,
         };
+        let resolution_m = grid.resolution_m();
         Self {
             grid,
             occupied_log_odds: log_odds_from_probability(config.occupied_probability),
             kernel,
             miss: model.log_likelihood(model.max_distance_m),
-            model,
+            table: SquaredDistanceTable::new(&model),
+            origin_m: grid.origin_m().coords,
+            inv_resolution: 1.0 / resolution_m,
+            resolution_m2: resolution_m * resolution_m,
         }
     }
 
@@ -195,26 +206,62 @@ impl<'a> GridScorer<'a> {
             .is_some_and(|l| l > self.occupied_log_odds)
     }
 
-    /// Squared distance from `hit` to the nearest occupied cell centre within the kernel whose
-    /// partner cell around `back` is not occupied.
-    fn nearest_squared(&self, hit: Point2<f64>, back: Point2<f64>) -> Option<f64> {
-        let ch = self.grid.cell_at(&hit)?;
-        let cb = self.grid.cell_at(&back)?;
-        let mut best: Option<f64> = None;
-        for dy in -self.kernel..=self.kernel {
-            for dx in -self.kernel..=self.kernel {
-                if !self.occupied(ch.x + dx, ch.y + dy) || self.occupied(cb.x + dx, cb.y + dy) {
-                    continue;
+    /// Cell holding world point `p`, and `p`'s offset from that cell's centre in cells; `None`
+    /// for NaN or points far outside any grid. (Rounds down without a `floor` call: this runs
+    /// for every beam of every candidate pose.)
+    #[inline]
+    fn cell(&self, p: &Point2<f64>) -> Option<(i32, i32, f64, f64)> {
+        let x = (p.x - self.origin_m.x) * self.inv_resolution;
+        let y = (p.y - self.origin_m.y) * self.inv_resolution;
+        if !(x.abs() < 1e8 && y.abs() < 1e8) {
+            return None;
+        }
+        let round_down = |v: f64| {
+            let i = v as i32;
+            if f64::from(i) > v {
+                i - 1
+            } else {
+                i
+            }
+        };
+        let (cx, cy) = (round_down(x), round_down(y));
+        Some((cx, cy, x - f64::from(cx) - 0.5, y - f64::from(cy) - 0.5))
+    }
+
+    /// Log-odds of the `len` cells from `(x, y)` along +x, read as one tile row when they lie in
+    /// one tile (nearly always), cell by cell otherwise.
+    #[inline]
+    fn row(&self, x: i32, y: i32, out: &mut [f32]) {
+        match self.grid.log_odds_row(CellIndex { x, y }, out.len()) {
+            Some(cells) => out.copy_from_slice(cells),
+            None => {
+                for (o, cx) in out.iter_mut().zip(x..) {
+                    *o = self.grid.log_odds(CellIndex { x: cx, y }).unwrap_or(0.0);
                 }
-                let centre = self.grid.cell_center_m(CellIndex {
-                    x: ch.x + dx,
-                    y: ch.y + dy,
-                });
-                let d2 = (centre - hit).norm_squared();
-                best = Some(best.map_or(d2, |b: f64| b.min(d2)));
             }
         }
-        best
+    }
+
+    /// Squared distance \[m²\] from `hit` to the nearest occupied cell centre within the
+    /// kernel whose partner cell around `back` is not occupied.
+    fn nearest_squared(&self, hit: Point2<f64>, back: Point2<f64>) -> Option<f64> {
+        let (hx, hy, fx, fy) = self.cell(&hit)?;
+        let (bx, by, _, _) = self.cell(&back)?;
+        let k = self.kernel;
+        let mut cells = [0.0f32; MAX_ROW];
+        let cells = cells.get_mut(..(2 * k + 1) as usize)?;
+        let mut best = f64::INFINITY;
+        for dy in -k..=k {
+            self.row(hx - k, hy + dy, cells);
+            for (dx, &l) in (-k..).zip(cells.iter()) {
+                if l <= self.occupied_log_odds || self.occupied(bx + dx, by + dy) {
+                    continue;
+                }
+                let (ex, ey) = (f64::from(dx) - fx, f64::from(dy) - fy);
+                best = best.min(ex * ex + ey * ey);
+            }
+        }
+        best.is_finite().then_some(best * self.resolution_m2)
     }
 
     /// Log-likelihood of `scan` with the robot base at `world_from_base`.
@@ -227,7 +274,7 @@ impl<'a> GridScorer<'a> {
             match self.nearest_squared(world_from_base * hit, world_from_base * back) {
                 Some(d2) => {
                     total.matched += 1;
-                    total.log_likelihood += self.model.log_likelihood(d2.sqrt());
+                    total.log_likelihood += self.table.log_likelihood(d2);
                 }
                 None => total.log_likelihood += self.miss,
             }
