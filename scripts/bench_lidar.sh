@@ -3,12 +3,22 @@
 # mrpt-apps, run through ../shared/tools/mrpt/run-mrpt.sh) on the Freiburg benchmark logs, both
 # scored with `slamkit eval relations`; wall time, CPU time (user + sys) and peak memory from
 # /usr/bin/time.
-# usage: scripts/bench_lidar.sh [OUTDIR]     (needs SLAMKIT_DATA; installs mrpt-apps if missing)
+# METHOD=rbpf compares the particle filters instead (both with 10 particles, MRPT's ICP-based
+# rbpf-slam config); LOGS="aces mit-csail" runs only those logs.
+# usage: [METHOD=icp|rbpf] [LOGS="intel aces mit-csail"] scripts/bench_lidar.sh [OUTDIR]
+#        (needs SLAMKIT_DATA; installs mrpt-apps if missing)
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 data=${SLAMKIT_DATA:?set SLAMKIT_DATA to the data folder}
 mrpt_tools=${MRPT_TOOLS:-$root/../shared/tools/mrpt}
-out=${1:-$root/out/bench-lidar}
+method=${METHOD:-icp}
+logs=${LOGS:-intel aces mit-csail}
+case $method in
+  icp) slamkit_flags=(--method icp) ;;
+  rbpf) slamkit_flags=(--method rbpf --particles 10) ;;
+  *) echo "METHOD must be icp or rbpf" >&2; exit 2 ;;
+esac
+out=${1:-$root/out/bench-lidar-$method}
 mkdir -p "$out"
 
 if ! command -v icp-slam >/dev/null; then
@@ -41,17 +51,18 @@ print(f"{secs:.1f} s|{cpu:.1f} s|{mib:.0f} MiB")
 PY
 }
 
-echo "| log | slamkit icp | wall | CPU | peak | MRPT icp-slam | wall | CPU | peak | wall ratio | CPU ratio |"
+echo "| log | slamkit $method | wall | CPU | peak | MRPT $method-slam | wall | CPU | peak | wall ratio | CPU ratio |"
 echo "|---|---|---|---|---|---|---|---|---|---|---|"
 for run in "${runs[@]}"; do
   IFS='|' read -r name log rel flags <<<"$run"
+  [[ " $logs " == *" $name "* ]] || continue
   d=$out/$name
-  /usr/bin/time -v -o "$d.slamkit.time" "$slamkit" lidar "$data/$log" --relations "$data/$rel" \
-    --out "$d/slamkit" >/dev/null 2>&1
+  /usr/bin/time -v -o "$d.slamkit.time" "$slamkit" lidar "$data/$log" "${slamkit_flags[@]}" \
+    --relations "$data/$rel" --out "$d/slamkit" >/dev/null 2>&1
   s_err=$(field "$(score "$data/$rel" "$d/slamkit/trajectory.tum")")
   IFS='|' read -r s_wall s_cpu s_mem <<<"$(timing "$d.slamkit.time")"
   # shellcheck disable=SC2086
-  "$mrpt_tools/run-mrpt.sh" icp "$data/$log" "$d/mrpt" $flags >/dev/null 2>&1
+  "$mrpt_tools/run-mrpt.sh" "$method" "$data/$log" "$d/mrpt" $flags >/dev/null 2>&1
   to_tum "$d/mrpt/trajectory.txt" "$d/mrpt/trajectory.tum"
   m_err=$(field "$(score "$data/$rel" "$d/mrpt/trajectory.tum")")
   IFS='|' read -r m_wall m_cpu m_mem <<<"$(timing "$d/mrpt/time.txt")"
