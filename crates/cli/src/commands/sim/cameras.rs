@@ -30,14 +30,14 @@ pub fn write_tum_sequence(
 ) -> anyhow::Result<()> {
     let config = &sim.config.rgbd;
     let mut writer = TumRgbdWriter::create(dir, config.depth_units_per_metre)?;
-    for (i, &t) in times.iter().enumerate() {
-        let start = Instant::now();
-        let frame = sim.rgbd_frame(i, t);
-        timings.record_since("render_rgbd", start);
-        let start = Instant::now();
-        writer.write_frame(frame.timestamp, &frame.color, &frame.depth_m)?;
-        timings.record_since("write_rgbd", start);
-    }
+    let stages = ("render_rgbd", "write_rgbd");
+    for_each_frame(
+        times,
+        timings,
+        stages,
+        |i, t| sim.rgbd_frame(i, t),
+        |frame| writer.write_frame(frame.timestamp, &frame.color, &frame.depth_m),
+    )?;
     let truth = sim.sensor_ground_truth(times, &config.mount.base_from_camera());
     writer.finish(&truth)?;
     Ok(())
@@ -55,15 +55,35 @@ pub fn write_kitti_sequence(
     let config = &sim.config.stereo;
     let calib = KittiCalib::rectified(&config.intrinsics, config.baseline_m);
     let mut writer = KittiWriter::create(dir, &calib)?;
-    for (i, &t) in times.iter().enumerate() {
-        let start = Instant::now();
-        let frame = sim.stereo_frame(i, t);
-        timings.record_since("render_stereo", start);
-        let start = Instant::now();
-        writer.write_frame(frame.timestamp, &frame.left, &frame.right)?;
-        timings.record_since("write_stereo", start);
-    }
+    let stages = ("render_stereo", "write_stereo");
+    for_each_frame(
+        times,
+        timings,
+        stages,
+        |i, t| sim.stereo_frame(i, t),
+        |frame| writer.write_frame(frame.timestamp, &frame.left, &frame.right),
+    )?;
     let truth = sim.sensor_ground_truth(times, &config.mount.base_from_camera());
     writer.finish(&truth)?;
+    Ok(())
+}
+
+/// Renders frame `i` at `times[i]` and hands it to `write`, one frame at a time, recording each
+/// call's wall time under the `(render, write)` stage names \[ms\].
+fn for_each_frame<F, E>(
+    times: &[f64],
+    timings: &mut StageTimings,
+    (render_stage, write_stage): (&str, &str),
+    render: impl Fn(usize, f64) -> F,
+    mut write: impl FnMut(F) -> Result<(), E>,
+) -> Result<(), E> {
+    for (i, &t) in times.iter().enumerate() {
+        let start = Instant::now();
+        let frame = render(i, t);
+        timings.record_since(render_stage, start);
+        let start = Instant::now();
+        write(frame)?;
+        timings.record_since(write_stage, start);
+    }
     Ok(())
 }
