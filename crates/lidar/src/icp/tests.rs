@@ -168,11 +168,52 @@ fn weights_are_the_derivative_of_the_costs() {
             let h = 1e-7;
             let drho = (rho(kernel, 0.05, r + h) - rho(kernel, 0.05, r - h)) / (2.0 * h);
             assert!(
-                (drho / r - weight(kernel, 0.05, r)).abs() < 1e-5,
+                (drho / r - weight(kernel, 0.05, r * r)).abs() < 1e-5,
                 "{kernel:?} at {r}"
             );
         }
     }
+}
+
+#[test]
+fn cost_sum_equals_the_sum_of_costs() {
+    let residuals: Vec<f64> = (0..400).map(|i| f64::from(i) * 0.37 % 3.0).collect();
+    for kind in [
+        RobustKernel::None,
+        RobustKernel::Huber,
+        RobustKernel::Cauchy,
+        RobustKernel::Tukey,
+    ] {
+        let kernel = Kernel {
+            kind,
+            scale_m: 0.01,
+        };
+        let mut sum = CostSum::new(kernel);
+        for r in &residuals {
+            sum.add(r * r);
+        }
+        let direct: f64 = residuals.iter().map(|&r| rho(kind, 0.01, r)).sum();
+        assert!(
+            (sum.total() - direct).abs() <= 1e-12 * direct,
+            "{kind:?}: {} vs {direct}",
+            sum.total()
+        );
+    }
+    // Huge residuals (a wild trial step) neither overflow the product nor lose their cost.
+    let cauchy = Kernel {
+        kind: RobustKernel::Cauchy,
+        scale_m: 0.01,
+    };
+    let mut sum = CostSum::new(cauchy);
+    let huge = [1e145, 1e200, 1e140, 1e290];
+    for r2 in huge {
+        sum.add(r2);
+    }
+    let direct: f64 = huge
+        .iter()
+        .map(|r2| rho(cauchy.kind, 0.01, r2.sqrt()))
+        .sum();
+    assert!((sum.total() - direct).abs() <= 1e-12 * direct);
 }
 
 #[test]
