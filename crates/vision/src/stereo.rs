@@ -98,6 +98,9 @@ const LANES: usize = 8;
 /// and of their squares then stay below 2³², and the `i32` dot product cannot overflow.
 const MAX_HALF_WINDOW: usize = 64;
 
+/// Largest coarse half window: sums of 15 × 15 products of grey levels stay below 2²⁴.
+const MAX_COARSE_HALF_WINDOW: usize = 7;
+
 /// Full-resolution disparities evaluated on each side of a coarse peak `2D` and of the best
 /// full-resolution score: ±2 covers the odd disparities between coarse samples and the
 /// competitors just outside ±1 px that the confidence looks at.
@@ -147,21 +150,7 @@ impl RightImage {
     /// caller keeps the window inside the image.
     fn zncc(&self, patch: &Patch, xr: usize, y: usize, r: usize) -> f32 {
         let side = 2 * r + 1;
-        let n = (side * side) as f32;
-        let stride = self.width + 1;
-        let (x0, y0, x1, y1) = (xr - r, y - r, xr + r + 1, y + r + 1);
-        // exact: the window sums are below 2³² (MAX_HALF_WINDOW)
-        let rect = |s: &[u32]| {
-            s[y1 * stride + x1]
-                .wrapping_add(s[y0 * stride + x0])
-                .wrapping_sub(s[y0 * stride + x1])
-                .wrapping_sub(s[y1 * stride + x0])
-        };
-        let sum = rect(&self.sum) as f32;
-        let var = rect(&self.sum_sq) as f32 - sum * sum / n;
-        if var <= 1e-3 {
-            return -1.0;
-        }
+        let (x0, y0, y1) = (xr - r, y - r, y + r + 1);
         let padded = side.next_multiple_of(LANES);
         // integer dot product over zero-padded rows (exact), in eight i32 lanes reduced once per
         // window
@@ -181,7 +170,28 @@ impl RightImage {
                 }
             }
         }
-        let dot: i32 = acc.iter().sum();
+        self.normalise(patch, acc.iter().sum(), x0, y0, side)
+    }
+
+    /// ZNCC from the dot product of the left `patch` with the right window of side `side` whose
+    /// top-left pixel is (`x0`, `y0`).
+    #[inline]
+    fn normalise(&self, patch: &Patch, dot: i32, x0: usize, y0: usize, side: usize) -> f32 {
+        let n = (side * side) as f32;
+        let stride = self.width + 1;
+        let (x1, y1) = (x0 + side, y0 + side);
+        // exact: the window sums are below 2³² (MAX_HALF_WINDOW)
+        let rect = |s: &[u32]| {
+            s[y1 * stride + x1]
+                .wrapping_add(s[y0 * stride + x0])
+                .wrapping_sub(s[y0 * stride + x1])
+                .wrapping_sub(s[y1 * stride + x0])
+        };
+        let sum = rect(&self.sum) as f32;
+        let var = rect(&self.sum_sq) as f32 - sum * sum / n;
+        if var <= 1e-3 {
+            return -1.0;
+        }
         // Σ (l − l̄)(r − r̄) = Σ l′r − (Σ l′)(Σ r)/n for l′ = l − any constant
         let cov = f64::from(dot) - f64::from(patch.sum) * f64::from(sum) / f64::from(n);
         (cov / f64::from(patch.norm * var.sqrt())) as f32
@@ -193,6 +203,58 @@ impl RightImage {
 struct CoarsePair {
     left: GrayImage,
     right: RightImage,
+    /// The right image as `f32`: the coarse dot products (at most 15 × 15 products of grey
+    /// levels) are integers below 2²⁴, exact in `f32`, whose multiply-add SSE2 vectorises.
+    right_f32: Vec<f32>,
+}
+
+impl CoarsePair {
+    fn new(left: &GrayImage, right: &GrayImage) -> Self {
+        let right = half_box(right);
+        Self {
+            left: half_box(left),
+            right_f32: right.data().iter().map(|&v| f32::from(v)).collect(),
+            right: RightImage::new(&right),
+        }
+    }
+
+    /// ZNCC of the left `patch` (half side `r` ≤ 7) with the `count` right windows on row `y`
+    /// centred at `x_first, x_first + 1, …`, appended to `out` in that order: one pass over the
+    /// run per patch pixel, which vectorises over the windows.
+    fn zncc_run(
+        &self,
+        patch: &Patch,
+        (x_first, y): (usize, usize),
+        r: usize,
+        count: usize,
+        scratch: (&mut Vec<f32>, &mut Vec<f32>),
+    ) {
+        let (dots, out) = scratch;
+        let side = 2 * r + 1;
+        let padded = side.next_multiple_of(LANES);
+        let x0 = x_first - r;
+        let w = self.right.width;
+        dots.clear();
+        dots.resize(count, 0.0);
+        for (row, prow) in (y - r..=y + r).zip(patch.values.chunks_exact(padded)) {
+            let start = row * w + x0;
+            let Some(rrow) = self.right_f32.get(start..start + count + side - 1) else {
+                out.extend(std::iter::repeat(-1.0).take(count));
+                return;
+            };
+            for (c, &p) in prow.iter().take(side).enumerate() {
+                let p = f32::from(p);
+                for (d, &v) in dots.iter_mut().zip(&rrow[c..c + count]) {
+                    *d += p * v;
+                }
+            }
+        }
+        out.extend(
+            dots.iter()
+                .enumerate()
+                .map(|(k, &dot)| self.right.normalise(patch, dot as i32, x0 + k, y - r, side)),
+        );
+    }
 }
 
 /// A rectified pair prepared for matching.
@@ -212,6 +274,7 @@ struct Scratch {
     /// Full-resolution scores by disparity − `min_disparity_px`; `NEG_INFINITY` = not evaluated.
     scores: Vec<f32>,
     coarse_scores: Vec<f32>,
+    dots: Vec<f32>,
     peaks: Vec<(usize, f32)>,
 }
 
@@ -255,12 +318,19 @@ impl<'a> StereoPair<'a> {
             coarse_patch: Patch::with_side(side / 2 + 1),
             scores: Vec::with_capacity(config.max_disparity_px + 1),
             coarse_scores: Vec::new(),
+            dots: Vec::new(),
             peaks: Vec::new(),
         };
-        Ok(points
-            .iter()
-            .map(|&p| self.match_point(p, config, &mut scratch))
-            .collect())
+        // row by row, so that consecutive points read nearby rows of the right image
+        let mut order: Vec<usize> = (0..points.len()).collect();
+        order.sort_by(|&a, &b| points[a].1.total_cmp(&points[b].1));
+        let mut out = vec![None; points.len()];
+        for i in order {
+            if let (Some(&p), Some(slot)) = (points.get(i), out.get_mut(i)) {
+                *slot = self.match_point(p, config, &mut scratch);
+            }
+        }
+        Ok(out)
     }
 
     fn match_point(
@@ -310,11 +380,10 @@ impl<'a> StereoPair<'a> {
         config: &StereoConfig,
         scratch: &mut Scratch,
     ) -> bool {
-        let coarse = self.coarse.get_or_init(|| CoarsePair {
-            left: half_box(self.left),
-            right: RightImage::new(&half_box(self.right_image)),
-        });
-        let rc = config.half_window_px / 2;
+        let coarse = self
+            .coarse
+            .get_or_init(|| CoarsePair::new(self.left, self.right_image));
+        let rc = (config.half_window_px / 2).min(MAX_COARSE_HALF_WINDOW);
         let (xc, yc) = (xi / 2, yi / 2);
         if rc == 0
             || xc < rc
@@ -328,10 +397,17 @@ impl<'a> StereoPair<'a> {
         // coarse disparity D stands for full-resolution 2D; keep the coarse window inside
         let (dc_min, dc_max) = (d_min / 2, (d_max / 2).min(xc - rc));
         scratch.coarse_scores.clear();
-        for dc in dc_min..=dc_max {
-            let s = coarse.right.zncc(&scratch.coarse_patch, xc - dc, yc, rc);
-            scratch.coarse_scores.push(s);
+        if dc_max >= dc_min {
+            coarse.zncc_run(
+                &scratch.coarse_patch,
+                (xc - dc_max, yc),
+                rc,
+                dc_max - dc_min + 1,
+                (&mut scratch.dots, &mut scratch.coarse_scores),
+            );
         }
+        // by coarse disparity from dc_min
+        scratch.coarse_scores.reverse();
         let c = &scratch.coarse_scores;
         scratch.peaks.clear();
         scratch
