@@ -16,7 +16,7 @@ use slamkit_vision::{match_descriptors, Descriptor, KltPyramid};
 
 use crate::config::{FrontendKind, TrackingMode, VoConfig};
 use crate::frame::PreparedFrame;
-use crate::local_map::LocalMap;
+use crate::local_map::{match_in_windows, LocalMap, Observation, PixelGrid};
 use crate::motion::{estimate_motion, Correspondence, MotionFailure};
 
 /// A reference feature matched in the current frame: the descriptor to refresh it with, its
@@ -106,6 +106,11 @@ pub struct Odometry {
     map: LocalMap,
     failures_in_row: usize,
     tracked: usize,
+    /// `previous_from_current` of the last step between consecutive tracked frames: the
+    /// constant-velocity prediction.
+    velocity: Pose3,
+    /// Index of the last tracked (or initialised) frame.
+    last_index: Option<usize>,
 }
 
 impl Odometry {
@@ -118,6 +123,8 @@ impl Odometry {
             map: LocalMap::new(),
             failures_in_row: 0,
             tracked: 0,
+            velocity: Pose3::identity(),
+            last_index: None,
         }
     }
 
@@ -163,8 +170,13 @@ impl Odometry {
         let Some(reference) = self.reference.take() else {
             return self.skip(FailReason::TooFewFeatures { with_depth: 0 });
         };
+        let previous = self.world_from_camera;
         self.world_from_camera =
             reference.world_from_camera * estimate.current_from_reference.inverse();
+        if self.last_index.is_some_and(|i| i + 1 == frame.index) {
+            self.velocity = previous.inverse() * self.world_from_camera;
+        }
+        self.last_index = Some(frame.index);
         self.failures_in_row = 0;
         self.tracked += 1;
         let kept: Vec<Candidate> = estimate
@@ -185,6 +197,7 @@ impl Odometry {
             return self.skip(FailReason::TooFewFeatures { with_depth });
         }
         self.failures_in_row = 0;
+        self.last_index = Some(frame.index);
         self.reference = None;
         self.update_reference(frame, &[]);
         FrameStatus::Initialised {
@@ -256,26 +269,60 @@ impl Odometry {
             .collect())
     }
 
-    /// ORB with the local map: the frame's descriptors matched against the map's.
+    /// The constant-velocity prediction of the pose of frame `index`.
+    fn predicted_pose(&self, index: usize) -> Pose3 {
+        let steps = index
+            .saturating_sub(self.last_index.unwrap_or(index))
+            .max(1);
+        (0..steps).fold(self.world_from_camera, |pose, _| pose * self.velocity)
+    }
+
+    /// ORB with the local map: the landmarks projected into the predicted pose, each matched
+    /// to the frame's features with depth near its projection (the search widened once when
+    /// too few match).
     fn map_matches(&self, frame: &PreparedFrame, ref_from_world: &Pose3) -> Vec<Match> {
-        let (ids, descriptors) = self.map.descriptors();
+        let lm = &self.config.local_map;
         let f = &frame.features;
-        match_descriptors(&f.descriptors, &descriptors, &self.config.matching)
+        let k = &frame.camera;
+        let camera_from_world = self.predicted_pose(frame.index).inverse();
+        let projected = self.map.project(&camera_from_world, k);
+        let with_depth = f.pixels.iter().zip(&f.points).enumerate();
+        let grid = PixelGrid::new(
+            with_depth.filter_map(|(i, (px, p))| p.map(|_| (i, *px))),
+            k.width,
+            k.height,
+            lm.search_radius_px,
+        );
+        let search = |r| {
+            match_in_windows(
+                &projected,
+                &f.pixels,
+                &f.descriptors,
+                &grid,
+                r,
+                &self.config.matching,
+            )
+        };
+        let mut pairs = search(lm.search_radius_px);
+        if pairs.len() < lm.min_window_matches {
+            pairs = search(lm.recovery_radius_px);
+        }
+        pairs
             .into_iter()
-            .filter_map(|m| {
-                let id = *ids.get(m.train_idx)?;
+            .filter_map(|(li, fi)| {
+                let (id, _, descriptor) = *projected.get(li)?;
                 let landmark = self.map.get(id)?;
                 let feature = RefFeature {
                     pixel: Point2::origin(),
                     point: ref_from_world * landmark.position(),
-                    descriptor: landmark.descriptor().copied(),
+                    descriptor: Some(descriptor),
                     landmark: Some(id),
                 };
                 Some((
                     feature,
-                    f.descriptors.get(m.query_idx).copied(),
-                    *f.pixels.get(m.query_idx)?,
-                    *f.points.get(m.query_idx)?,
+                    f.descriptors.get(fi).copied(),
+                    *f.pixels.get(fi)?,
+                    *f.points.get(fi)?,
                 ))
             })
             .collect()
@@ -319,7 +366,7 @@ impl Odometry {
             }
         }
         if self.config.mode == TrackingMode::LocalMap {
-            self.update_map(&mut features, frame.index);
+            self.update_map(&mut features, &frame);
         }
         self.reference = Some(Reference {
             world_from_camera: self.world_from_camera,
@@ -328,22 +375,55 @@ impl Odometry {
         });
     }
 
-    fn update_map(&mut self, features: &mut [RefFeature], index: usize) {
-        let keyframe = self.tracked % self.config.local_map.keyframe_every == 0;
-        for f in features.iter_mut() {
-            let world = self.world_from_camera * f.point;
-            match (f.landmark, keyframe) {
-                (Some(id), true) => {
-                    if !self.map.observe(id, world, f.descriptor, index) {
-                        f.landmark = Some(self.map.insert(world, f.descriptor, index));
-                    }
+    /// Key frames: matched features merge into their landmarks, the others into a landmark
+    /// projecting next to them with a close descriptor or, when there is none, become new
+    /// landmarks; other frames only mark their matched landmarks as seen. Each observation is
+    /// weighted by its inverse depth variance.
+    fn update_map(&mut self, features: &mut [RefFeature], frame: &PreparedFrame) {
+        let index = frame.index;
+        let lm = &self.config.local_map;
+        if self.tracked % lm.keyframe_every != 0 {
+            for f in features.iter() {
+                if let Some(id) = f.landmark {
+                    self.map.touch(id, f.descriptor, index);
                 }
-                (Some(id), false) => self.map.touch(id, index),
-                (None, true) => f.landmark = Some(self.map.insert(world, f.descriptor, index)),
-                (None, false) => {}
+            }
+        } else {
+            let bf = frame.stereo_camera(&self.config).bf;
+            let noise = &self.config.motion.noise;
+            let observation = |f: &RefFeature| Observation {
+                world: self.world_from_camera * f.point,
+                weight: noise.depth_sigma_m(f.point.z, bf).powi(-2),
+                descriptor: f.descriptor,
+                frame: index,
+            };
+            let observations: Vec<Observation> = features.iter().map(observation).collect();
+            let projected = self
+                .map
+                .project(&self.world_from_camera.inverse(), &frame.camera);
+            let grid = PixelGrid::new(
+                projected.iter().enumerate().map(|(i, p)| (i, p.1)),
+                frame.camera.width,
+                frame.camera.height,
+                lm.merge_radius_px,
+            );
+            for (f, o) in features.iter_mut().zip(&observations) {
+                f.landmark = f.landmark.filter(|&id| self.map.observe(id, o));
+            }
+            for (f, o) in features.iter_mut().zip(&observations) {
+                if f.landmark.is_none() {
+                    f.landmark = Some(self.map.merge_or_insert(
+                        o,
+                        f.pixel,
+                        &projected,
+                        &grid,
+                        lm.merge_radius_px,
+                        self.config.matching.max_distance,
+                    ));
+                }
             }
         }
-        self.map.prune(index, self.config.local_map.window_frames);
+        self.map.prune(index, lm.window_frames, lm.max_landmarks);
     }
 }
 
