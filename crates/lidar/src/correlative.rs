@@ -61,9 +61,11 @@ pub struct CorrelativeResult {
     pub score: f64,
 }
 
-/// A likelihood field on a regular grid.
+/// A likelihood field on the cells `[first.0, first.0 + width) × [first.1, first.1 + height)`
+/// of the lattice of side `resolution_m` anchored at `origin`.
 struct Field {
     origin: Point2<f64>,
+    first: (i64, i64),
     resolution_m: f64,
     width: usize,
     height: usize,
@@ -71,40 +73,41 @@ struct Field {
 }
 
 impl Field {
-    /// The field of `points` over the square of half-side `half_m` around `centre`.
+    /// The field of `points` on the lattice cells from `lo` to `hi` (inclusive).
     fn new(
         points: &[Point2<f64>],
-        centre: &Point2<f64>,
-        half_m: f64,
+        origin: &Point2<f64>,
+        (lo, hi): ((i64, i64), (i64, i64)),
         res: f64,
         sigma: f64,
     ) -> Self {
-        let side = (2.0 * half_m / res).ceil() as usize + 1;
-        let origin = centre - Vector2::new(half_m, half_m);
+        let span = |a: i64, b: i64| usize::try_from(b - a + 1).unwrap_or(0);
+        let (width, height) = (span(lo.0, hi.0), span(lo.1, hi.1));
         let mut field = Self {
-            origin,
+            origin: *origin,
+            first: lo,
             resolution_m: res,
-            width: side,
-            height: side,
+            width,
+            height,
             cells: Vec::new(),
         };
         // The likelihood falls with distance, so each cell keeps the squared distance to its
         // nearest point and takes one exponential at the end.
-        let mut nearest_sq = vec![f64::INFINITY; side * side];
+        let mut nearest_sq = vec![f64::INFINITY; width * height];
         let reach = (3.0 * sigma / res).ceil() as i64;
         for p in points {
             let (ci, cj) = field.cell(p);
-            let (w, h) = (side as i64, side as i64);
-            if ci < -reach || cj < -reach || ci >= w + reach || cj >= h + reach {
-                continue;
-            }
-            for j in cj - reach..=cj + reach {
-                for i in ci - reach..=ci + reach {
-                    let Some(d2) = field.offset(i, j).and_then(|k| nearest_sq.get_mut(k)) else {
-                        continue;
-                    };
-                    let c = origin + Vector2::new(i as f64 + 0.5, j as f64 + 0.5) * res;
-                    *d2 = d2.min((c - p).norm_squared());
+            let (i0, i1) = ((ci - reach).max(lo.0), (ci + reach).min(hi.0));
+            let (j0, j1) = ((cj - reach).max(lo.1), (cj + reach).min(hi.1));
+            for j in j0..=j1 {
+                let dy = origin.y + (j as f64 + 0.5) * res - p.y;
+                let Some(row) = field.offset(i0, j).and_then(|k| nearest_sq.get_mut(k..)) else {
+                    continue;
+                };
+                for (i, d2) in (i0..=i1).zip(row) {
+                    let dx = origin.x + (i as f64 + 0.5) * res - p.x;
+                    let e = dx * dx + dy * dy;
+                    *d2 = if e < *d2 { e } else { *d2 };
                 }
             }
         }
@@ -121,15 +124,13 @@ impl Field {
         field
     }
 
-    /// Cell of `p`; far-off (or NaN) points map to cells far outside the grid, clamped so that
-    /// offsets added later cannot overflow.
+    /// Lattice cell of `p` (see [`lattice_cell`]).
     fn cell(&self, p: &Point2<f64>) -> (i64, i64) {
-        let d = (p - self.origin) / self.resolution_m;
-        let clamp = |v: f64| v.clamp(-1e9, 1e9).floor() as i64;
-        (clamp(d.x), clamp(d.y))
+        lattice_cell(&self.origin, self.resolution_m, p)
     }
 
     fn offset(&self, i: i64, j: i64) -> Option<usize> {
+        let (i, j) = (i - self.first.0, j - self.first.1);
         let (i, j) = (usize::try_from(i).ok()?, usize::try_from(j).ok()?);
         (i < self.width && j < self.height).then_some(j * self.width + i)
     }
@@ -179,12 +180,16 @@ impl Field {
     /// there, without per-cell range checks.
     fn window(&self, footprint: &Footprint, di: i64, dj: i64) -> Option<&[f32]> {
         let (w, h) = (self.width as i64, self.height as i64);
-        let inside = footprint.min.0 + di >= 0
-            && footprint.min.1 + dj >= 0
-            && footprint.max.0 + di < w
-            && footprint.max.1 + dj < h
-            && footprint.width == w;
-        let corner = usize::try_from((footprint.min.1 + dj) * w + footprint.min.0 + di).ok()?;
+        let (i0, j0) = (
+            footprint.min.0 + di - self.first.0,
+            footprint.min.1 + dj - self.first.1,
+        );
+        let (i1, j1) = (
+            footprint.max.0 + di - self.first.0,
+            footprint.max.1 + dj - self.first.1,
+        );
+        let inside = i0 >= 0 && j0 >= 0 && i1 < w && j1 < h && footprint.width == w;
+        let corner = usize::try_from(j0 * w + i0).ok()?;
         inside.then(|| self.cells.get(corner..)).flatten()
     }
 
@@ -229,6 +234,14 @@ impl Field {
         }
         out
     }
+}
+
+/// Cell of `p` in the lattice of side `res` anchored at `origin`; far-off (or NaN) points map
+/// to cells far outside any field, clamped so that offsets added later cannot overflow.
+fn lattice_cell(origin: &Point2<f64>, res: f64, p: &Point2<f64>) -> (i64, i64) {
+    let d = (p - origin) / res;
+    let clamp = |v: f64| v.clamp(-1e9, 1e9).floor() as i64;
+    (clamp(d.x), clamp(d.y))
 }
 
 /// Translations scored together by [`Field::score_lanes`].
@@ -302,9 +315,9 @@ pub fn correlative_match(
     let reach_m = source.iter().map(|p| p.coords.norm()).fold(0.0, f64::max);
     let centre = Point2::from(initial.translation.vector);
     let half = reach_m + config.linear_window_m + 4.0 * config.sigma_m + res;
-    let field = Field::new(target, &centre, half, res, config.sigma_m);
+    let origin = centre - Vector2::new(half, half);
+    let side = (2.0 * half / res).ceil() as i64 + 1;
     let coarse = config.coarse_cells.max(1);
-    let bound_field = field.sliding_max(coarse);
 
     // Rotation step: the farthest point moves by at most one cell (Olson 2009, eq. 11).
     let step = (1.0 - res * res / (2.0 * reach_m.max(res).powi(2)))
@@ -315,16 +328,36 @@ pub fn correlative_match(
     let n_ang = (config.angular_window_rad / step).ceil() as i64;
     let theta0 = initial.rotation.angle();
     let angles: Vec<f64> = (-n_ang..=n_ang).map(|a| theta0 + a as f64 * step).collect();
-    let rotated: Vec<Footprint> = angles
+    let footprints: Vec<Vec<(i64, i64)>> = angles
         .iter()
         .map(|&theta| {
             let pose = Pose2::new(initial.translation.vector, theta);
-            let cells = source.iter().map(|p| field.cell(&(pose * p))).collect();
-            Footprint::new(cells, field.width)
+            source
+                .iter()
+                .map(|p| lattice_cell(&origin, res, &(pose * p)))
+                .collect()
         })
         .collect();
-
     let w = (config.linear_window_m / res).ceil() as i64;
+    // Only the cells the shifted footprints (and the bound's windows beyond them) can read are
+    // built: the same cells, with the same values, as the whole square around the guess.
+    let (lo, hi) = footprints.iter().flatten().fold(
+        ((i64::MAX, i64::MAX), (i64::MIN, i64::MIN)),
+        |(lo, hi), &(i, j)| ((lo.0.min(i), lo.1.min(j)), (hi.0.max(i), hi.1.max(j))),
+    );
+    let reach_cells = w + coarse as i64 - 1;
+    let lo = ((lo.0 - w).max(0), (lo.1 - w).max(0));
+    let hi = (
+        (hi.0 + reach_cells).min(side - 1),
+        (hi.1 + reach_cells).min(side - 1),
+    );
+    let field = Field::new(target, &origin, (lo, hi), res, config.sigma_m);
+    let bound_field = field.sliding_max(coarse);
+    let rotated: Vec<Footprint> = footprints
+        .into_iter()
+        .map(|cells| Footprint::new(cells, field.width))
+        .collect();
+
     let starts: Vec<i64> = (-w..=w).step_by(coarse).collect();
     let blocks = bound_blocks(&bound_field, &rotated, &starts);
     let best = best_in_blocks(&field, &rotated, &blocks, coarse as i64, w, n_ang as usize);

@@ -99,7 +99,10 @@ fn branch_and_bound_equals_exhaustive_search() {
     let res = config.resolution_m;
     let reach = source.iter().map(|p| p.coords.norm()).fold(0.0, f64::max);
     let half = reach + config.linear_window_m + 4.0 * config.sigma_m + res;
-    let field = Field::new(&target, &Point2::origin(), half, res, config.sigma_m);
+    let side = (2.0 * half / res).ceil() as i64 + 1;
+    let origin = Point2::new(-half, -half);
+    let whole = ((0, 0), (side - 1, side - 1));
+    let field = Field::new(&target, &origin, whole, res, config.sigma_m);
     let step = (1.0 - res * res / (2.0 * reach * reach))
         .acos()
         .min(config.max_angular_step_rad);
