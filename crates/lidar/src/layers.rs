@@ -65,10 +65,18 @@ pub struct LayeredSlamConfig {
     pub velocity_window_s: f64,
     /// Top horizontal speed of the constant-velocity prior \[m/s\] (above the drone's).
     pub max_speed_mps: f64,
+    /// Time constant with which an optical-flow velocity, when given, pulls the
+    /// constant-velocity prior towards it \[s\] ([`VelocityTracker::blend_measured`]).
+    pub flow_time_constant_s: f64,
     /// A scan match corrects the prediction only along directions in which the scan's
     /// information matrix has at least this eigenvalue (about that many points pinning the
     /// pose; [`degeneracy`]); 0 keeps every match whole.
     pub min_constraint: f64,
+    /// Normals for that information matrix are fitted to this many nearest points (within
+    /// the ICP normal radius): more than ICP's, so that a wall seen from close by, whose
+    /// points are a few millimetres apart with centimetres of range noise, reads as a line
+    /// pinning one direction rather than as clutter pinning two.
+    pub information_neighbours: usize,
     /// A match may move the predicted pose by at most this, plus `gate_growth_mps` for every
     /// second since the last accepted match \[m\]; a larger correction is a false match (the
     /// prior is good to millimetres per scan) and the prediction is kept.
@@ -95,7 +103,9 @@ impl Default for LayeredSlamConfig {
             use_odometry: false,
             velocity_window_s: 1.0,
             max_speed_mps: 0.3,
+            flow_time_constant_s: 1.0,
             min_constraint: 20.0,
+            information_neighbours: 20,
             gate_m: 0.05,
             gate_growth_mps: 0.1,
             gate_rad: 0.03,
@@ -128,6 +138,7 @@ impl LayeredSlamConfig {
                 [
                     ("min_constraint", self.min_constraint),
                     ("max_speed_mps", self.max_speed_mps),
+                    ("flow_time_constant_s", self.flow_time_constant_s),
                     ("gate_m", self.gate_m),
                     ("gate_growth_mps", self.gate_growth_mps),
                     ("gate_rad", self.gate_rad),
@@ -163,6 +174,9 @@ pub struct LayerInput<'a> {
     /// Heading integrated from the IMU's yaw-rate gyro \[rad\] (any origin; only its change
     /// between scans is used), `None` without a gyro.
     pub gyro_yaw_rad: Option<f64>,
+    /// Mean body-frame horizontal velocity `(forward, left)` since the previous scan from a
+    /// downward optical-flow sensor \[m/s\], `None` without one (or without a reading).
+    pub flow_velocity_mps: Option<Vector2<f64>>,
 }
 
 /// How one scan was used.
@@ -275,7 +289,7 @@ impl LayeredIcpSlam {
             .height
             .update(vertical(input.up_m), vertical(input.down_m));
         let accel = tilt_acceleration(roll, pitch);
-        let predicted = self.predict(input.scan, &accel, input.gyro_yaw_rad);
+        let predicted = self.predict(input, &accel);
         let tilted = cos_tilt.acos() > self.config.max_tilt_rad;
         let (pose, status) = match height {
             None => {
@@ -314,23 +328,30 @@ impl LayeredIcpSlam {
         }
     }
 
-    /// The last pose moved by the odometry increment, or by the recent velocity and the
-    /// acceleration `accel` the tilt shows, turning as the gyro heading `gyro_yaw` did.
-    fn predict(&mut self, scan: &LaserScan, accel: &Vector2<f64>, gyro_yaw: Option<f64>) -> Pose2 {
+    /// The last pose moved by the odometry increment, or by the optical flow's velocity, or by
+    /// the recent velocity and the acceleration `accel` the tilt shows; turning as the gyro
+    /// heading did when there is one.
+    fn predict(&mut self, input: &LayerInput, accel: &Vector2<f64>) -> Pose2 {
+        let scan = input.scan;
         let odometry = scan.odometry.filter(|_| self.config.use_odometry);
-        let gyro_yaw = gyro_yaw.filter(|y| y.is_finite());
+        let gyro_yaw = input.gyro_yaw_rad.filter(|y| y.is_finite());
         let turn = self
             .last_gyro_yaw
             .zip(gyro_yaw)
             .map(|(prev, cur)| cur - prev);
         self.last_gyro_yaw = gyro_yaw;
+        let flow = input
+            .flow_velocity_mps
+            .filter(|v| v.iter().all(|c| c.is_finite()));
+        let dt = self.last_time_s.map_or(0.0, |t| scan.timestamp - t);
+        let from = self.world_from_base;
+        if let Some(v) = flow {
+            self.velocity
+                .blend_measured(&v, dt, self.config.flow_time_constant_s);
+        }
         let predicted = match (self.last_odometry, odometry) {
-            (Some(prev), Some(cur)) => self.world_from_base * (prev.inverse() * cur),
-            _ => {
-                let dt = self.last_time_s.map_or(0.0, |t| scan.timestamp - t);
-                self.velocity
-                    .advance(&self.world_from_base, dt, accel, turn)
-            }
+            (Some(prev), Some(cur)) => from * (prev.inverse() * cur),
+            _ => self.velocity.advance(&from, dt, accel, turn),
         };
         if odometry.is_some() {
             self.last_odometry = odometry;
@@ -364,7 +385,13 @@ impl LayeredIcpSlam {
             c.normal_radius_m,
             c.normal_max_flatness,
         );
-        let information = scan_information(&points, &normals);
+        let information_normals = estimate_normals(
+            &points,
+            self.config.information_neighbours,
+            c.normal_radius_m,
+            c.normal_max_flatness,
+        );
+        let information = scan_information(&points, &information_normals);
         let prepared = PreparedScan { points, normals };
         let aligned = switched_from
             .filter(|_| self.config.align_new_layer)

@@ -7,7 +7,7 @@
 //! * [`motion`]: a drone flying waypoints `x y z yaw` (tilting as it accelerates) and a
 //!   differential-drive robot; ground truth `world_from_base` at any time.
 //! * Sensors with seeded noise: [`lidar`] (planar, tilting with the robot), [`range_finder`]
-//!   (up and down), [`odometry`] (drifting), [`attitude`] (roll, pitch, gyro heading),
+//!   (up and down), [`odometry`] (drifting), [`attitude`] (roll, pitch, gyro heading), [`flow`] (optical-flow velocity),
 //!   [`camera`] (RGB-D: colour and Kinect-like depth) and [`stereo`] (a rectified grey pair),
 //!   both ray-cast per pixel: [`Simulation::rgbd_frame`], [`Simulation::stereo_frame`].
 //! * [`relations`]: pairs of scans for benchmark relations files.
@@ -31,6 +31,7 @@
 pub mod attitude;
 pub mod camera;
 pub mod error;
+pub mod flow;
 pub mod lidar;
 pub mod motion;
 pub mod odometry;
@@ -45,6 +46,7 @@ pub mod world;
 pub use attitude::{AttitudeConfig, AttitudeReading, GyroConfig, YawGyro};
 pub use camera::{CameraMount, RgbdCameraConfig, RgbdFrame, View, TUM_FR1_INTRINSICS};
 pub use error::SimError;
+pub use flow::{FlowReading, OpticalFlowConfig};
 pub use lidar::Lidar2dConfig;
 pub use motion::{DiffDriveConfig, DroneConfig, RobotState, WaypointMotion};
 pub use odometry::{OdometryConfig, OdometrySimulator};

@@ -10,6 +10,7 @@
 
 use crate::attitude::{AttitudeConfig, AttitudeReading, YawGyro};
 use crate::camera::{render_rgbd, RgbdCameraConfig, RgbdFrame};
+use crate::flow::{FlowReading, OpticalFlowConfig};
 use crate::lidar::Lidar2dConfig;
 use crate::motion::{DiffDriveConfig, DroneConfig, RobotState, WaypointMotion};
 use crate::odometry::{OdometryConfig, OdometrySimulator};
@@ -54,6 +55,8 @@ pub struct SimConfig {
     pub range_finder: RangeFinderConfig,
     /// Roll and pitch from the flight controller.
     pub attitude: AttitudeConfig,
+    /// The drone's downward optical-flow velocity sensor.
+    pub flow: OpticalFlowConfig,
     /// The RGB-D camera.
     pub rgbd: RgbdCameraConfig,
     /// The stereo pair.
@@ -71,6 +74,7 @@ impl Default for SimConfig {
             lidar: Lidar2dConfig::default(),
             range_finder: RangeFinderConfig::default(),
             attitude: AttitudeConfig::default(),
+            flow: OpticalFlowConfig::default(),
             rgbd: RgbdCameraConfig::default(),
             stereo: StereoCameraConfig::default(),
         }
@@ -99,6 +103,8 @@ pub enum Stream {
     Stereo = 8,
     /// Yaw-rate gyro noise and bias (one sequential stream).
     Gyro = 9,
+    /// Optical-flow noise (index 0: the run's scale error; `k + 1`: reading `k`).
+    Flow = 10,
 }
 
 /// The lidar part of a run: what 2D lidar SLAM needs.
@@ -110,6 +116,8 @@ pub struct LidarRun {
     pub ranges: Vec<RangeReading>,
     /// Roll, pitch and integrated gyro heading at every scan time.
     pub attitudes: Vec<AttitudeReading>,
+    /// Optical-flow velocities, at the flow sensor's rate.
+    pub flows: Vec<FlowReading>,
     /// True `world_from_base` at every scan time.
     pub ground_truth: Trajectory,
 }
@@ -151,6 +159,7 @@ impl Simulation {
         config.lidar.validate()?;
         config.range_finder.validate()?;
         config.attitude.validate()?;
+        config.flow.validate()?;
         config.rgbd.validate()?;
         config.stereo.validate()?;
         Ok(Self {
@@ -244,6 +253,33 @@ impl Simulation {
             .collect()
     }
 
+    /// Optical-flow readings at `times` (sorted), each over the period since the previous time
+    /// (none at the first).
+    pub fn flow_readings(&self, times: &[f64]) -> Vec<FlowReading> {
+        let config = &self.config.flow;
+        let scale = config.scale_factor(&mut self.rng(Stream::Flow, 0));
+        times
+            .windows(2)
+            .enumerate()
+            .map(|(k, pair)| {
+                let (from, to) = (self.state_at(pair[0]), self.state_at(pair[1]));
+                // the flow camera sits beside the down-looking range finder
+                let [_, below] = self
+                    .config
+                    .range_finder
+                    .true_ranges(&self.scene, &to.world_from_base);
+                let mut rng = self.rng(Stream::Flow, k as u64 + 1);
+                config.read(
+                    (&from.world_from_base, &to.world_from_base),
+                    (pair[0], pair[1]),
+                    below,
+                    scale,
+                    &mut rng,
+                )
+            })
+            .collect()
+    }
+
     /// Range finder readings at `times`.
     pub fn range_readings(&self, times: &[f64]) -> Vec<RangeReading> {
         times
@@ -253,14 +289,15 @@ impl Simulation {
             .collect()
     }
 
-    /// The whole run's scans (with odometry), range readings, attitudes (at the scan times) and
-    /// ground truth, each sensor at its own rate.
+    /// The whole run's scans (with odometry), range readings, attitudes (at the scan times),
+    /// optical flow and ground truth, each sensor at its own rate.
     pub fn lidar_run(&self) -> LidarRun {
         let times = self.sample_times(self.config.lidar.rate_hz);
         LidarRun {
             scans: self.lidar_scans(&times),
             ranges: self.range_readings(&self.sample_times(self.config.range_finder.rate_hz)),
             attitudes: self.attitude_readings(&times),
+            flows: self.flow_readings(&self.sample_times(self.config.flow.rate_hz)),
             ground_truth: self.ground_truth(&times),
         }
     }

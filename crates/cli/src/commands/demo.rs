@@ -29,7 +29,7 @@ mod vo_run;
 
 use crate::output::{peak_rss_bytes, prepare_out_dir, progress_bar, timings_json, write_report};
 use anyhow::Context;
-use nalgebra::{Point3, Translation3, UnitQuaternion};
+use nalgebra::{Point3, Translation3, UnitQuaternion, Vector2};
 use serde_json::json;
 use slamkit_core::pose::pose3_to_pose2;
 use slamkit_core::{LaserScan, Pose2, Pose3, Trajectory};
@@ -40,7 +40,7 @@ use slamkit_lidar::layers::{
 };
 use slamkit_lidar::rbpf::{run_rbpf, RbpfConfig, RbpfOutput};
 use slamkit_map::{save_map_yaml, save_png, OccupancyGrid, OccupancyGridConfig};
-use slamkit_sim::{LidarRun, RangeReading, SimConfig, Simulation, World as SimWorld};
+use slamkit_sim::{FlowReading, LidarRun, RangeReading, SimConfig, Simulation, World as SimWorld};
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -260,8 +260,11 @@ fn run_layered(
     let mut slam = LayeredIcpSlam::new(config.clone())?;
     let bar = progress_bar(run.scans.len() as u64, "icp-slam");
     let mut estimates = Vec::with_capacity(run.scans.len());
+    let mut previous_s = None;
     for (scan, attitude) in run.scans.iter().zip(&run.attitudes) {
         let range = latest_reading(&run.ranges, scan.timestamp);
+        let flow = previous_s.and_then(|t0| mean_flow(&run.flows, t0, scan.timestamp));
+        previous_s = Some(scan.timestamp);
         let input = LayerInput {
             scan,
             up_m: range.and_then(|r| r.up_m),
@@ -269,6 +272,7 @@ fn run_layered(
             roll_rad: attitude.roll_rad,
             pitch_rad: attitude.pitch_rad,
             gyro_yaw_rad: Some(attitude.gyro_yaw_rad),
+            flow_velocity_mps: flow,
         };
         estimates.push(slam.process(&input));
         bar.inc(1);
@@ -315,6 +319,21 @@ fn with_height(planar: &[Pose2], estimates: &[LayeredEstimate]) -> Vec<Pose3> {
             )
         })
         .collect()
+}
+
+/// The mean optical-flow velocity over the readings that end in `(t0, t1]`, weighted by their
+/// integration periods; `None` when one of them has no velocity (or there is none).
+fn mean_flow(readings: &[FlowReading], t0: f64, t1: f64) -> Option<Vector2<f64>> {
+    let first = readings.partition_point(|r| r.timestamp <= t0);
+    let last = readings.partition_point(|r| r.timestamp <= t1);
+    let window = readings.get(first..last)?;
+    let (sum, span) = window
+        .iter()
+        .try_fold((Vector2::zeros(), 0.0), |(sum, span), r| {
+            r.velocity_mps
+                .map(|v| (sum + v * r.integration_s, span + r.integration_s))
+        })?;
+    (span > 0.0).then(|| sum / span)
 }
 
 /// The last range reading taken at or before `t`.

@@ -124,6 +124,7 @@ fn one_map_per_layer_reused_on_return_and_tilted_scans_skipped() {
             roll_rad: 0.0,
             pitch_rad: step.pitch_rad,
             gyro_yaw_rad: None,
+            flow_velocity_mps: None,
         });
         if k == 20 {
             assert_eq!(est.status, LayerScanStatus::Tilted);
@@ -285,6 +286,7 @@ fn turn_beside_a_pillar(gyro: bool) -> (f64, f64) {
             roll_rad: 0.0,
             pitch_rad: 0.0,
             gyro_yaw_rad: gyro.then_some(yaw + 0.01 * t),
+            flow_velocity_mps: None,
         }));
     }
     let est = est.unwrap().world_from_base;

@@ -142,6 +142,21 @@ impl VelocityTracker {
         }
         from * se2_exp(&step)
     }
+
+    /// Pulls the current horizontal velocity towards a measured body-frame one
+    /// (`velocity_mps`, an optical-flow sensor's mean over the last `dt_s` seconds), as a
+    /// first-order filter with time constant `time_constant_s`: the drone's inertia keeps the
+    /// flow's white noise out of a single scan's prior, the flow keeps the velocity from
+    /// drifting in the directions the scans do not observe.
+    pub fn blend_measured(&mut self, velocity_mps: &Vector2<f64>, dt_s: f64, time_constant_s: f64) {
+        let k = if time_constant_s > 0.0 {
+            (dt_s.max(0.0) / time_constant_s).min(1.0)
+        } else {
+            1.0
+        };
+        self.velocity.x += k * (velocity_mps.x - self.velocity.x);
+        self.velocity.y += k * (velocity_mps.y - self.velocity.y);
+    }
 }
 
 #[cfg(test)]
