@@ -8,6 +8,12 @@
 //! A forward–backward check (Z. Kalal, K. Mikolajczyk and J. Matas, "Forward-backward error",
 //! ICPR 2010) tracks every result back to the first image and rejects points that do not land
 //! within a threshold of where they started.
+//!
+//! The window arithmetic is OpenCV's fixed point: bilinear weights in 14 bits, the template and
+//! the next image interpolated to `i16` with 5 fractional bits (×32, the scale of the raw Scharr
+//! gradients, also kept in `i16`), and the sums `G` and `b` as exact integer dot products of
+//! `i16` lanes, which SSE2 computes eight at a time (`pmaddwd`). Points are visited top to bottom
+//! so that neighbouring windows find their image rows in cache.
 
 use serde::{Deserialize, Serialize};
 use slamkit_core::image::{GrayImage, Image};
@@ -15,6 +21,7 @@ use slamkit_core::image::{GrayImage, Image};
 use crate::error::VisionError;
 use crate::filter::scharr;
 use crate::pyramid::Pyramid;
+use crate::round::round_ties_even;
 
 /// KLT parameters (OpenCV defaults where OpenCV has them).
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -116,20 +123,32 @@ pub fn track(
 ) -> Result<Vec<Track>, VisionError> {
     check(prev, next, config)?;
     let mut win = Window::new(config.window_px);
+    // Points are independent; visiting them top to bottom lets neighbouring windows share the
+    // image rows already in cache (same results, fewer cache misses).
+    let mut order: Vec<usize> = (0..points.len()).collect();
+    order.sort_by(|&a, &b| points[a].1.total_cmp(&points[b].1));
     let mut out: Vec<Track> = points
         .iter()
-        .map(|&p| {
-            let r = track_point(prev, next, p, p, config, &mut win);
-            Track {
-                x: r.map_or(p.0, |q| q.0),
-                y: r.map_or(p.1, |q| q.1),
-                ok: r.is_some(),
-                fb_error_px: f32::NAN,
-            }
+        .map(|&(x, y)| Track {
+            x,
+            y,
+            ok: false,
+            fb_error_px: f32::NAN,
         })
         .collect();
+    for &k in &order {
+        let (Some(t), Some(&p)) = (out.get_mut(k), points.get(k)) else {
+            continue;
+        };
+        if let Some(q) = track_point(prev, next, p, p, config, &mut win) {
+            (t.x, t.y, t.ok) = (q.0, q.1, true);
+        }
+    }
     if config.fb_threshold_px > 0.0 {
-        for (t, &p) in out.iter_mut().zip(points) {
+        for &k in &order {
+            let (Some(t), Some(&p)) = (out.get_mut(k), points.get(k)) else {
+                continue;
+            };
             if !t.ok {
                 continue;
             }
@@ -233,21 +252,37 @@ fn track_point(
         .then_some(q)
 }
 
-/// Lanes of the explicit f32 accumulators: window rows are padded to a multiple of this so
-/// that every sum runs in fixed-width chunks the compiler turns into vector adds.
+/// Fractional bits of the bilinear weights (OpenCV's `W_BITS`).
+const W_BITS: u32 = 14;
+
+/// Fractional bits kept of interpolated intensities: I and J are stored ×32 as `i16`, the
+/// scale of the raw Scharr gradients, as OpenCV does.
+const I_BITS: u32 = 5;
+
+/// Window sums multiply two factors stored ×32 (I − J and ∇I, or ∇I twice); this brings them
+/// back to grey levels and grey/px, the units of [`KltConfig::min_eigenvalue`].
+const SUM_SCALE: f32 = 1.0 / ((1u32 << I_BITS) as f32 * SCHARR_GAIN);
+
+/// Window rows are padded to a multiple of this many `i16` (one SSE2 register), so that the
+/// sampling loops run in whole chunks the compiler turns into vector code.
 const LANES: usize = 8;
 
-/// The per-point integration window: template intensities and gradients, reused per level.
+/// Products summed in one `i32` before the sum is widened to `i64`: |I − J| ≤ 8160 + 1 and
+/// |∇I| ≤ 4080 + 1 (Scharr on 8 bits, one unit of weight rounding each), so 64 products stay
+/// below 2³¹.
+const BLOCK: usize = 64;
+
+/// The per-point integration window, reused per level: template intensities `i` (×32) and
+/// gradients `ix`, `iy` (×32 grey/px), and `j`, the next image sampled at the current estimate.
 /// Rows are `stride` long (`side` rounded up to [`LANES`]); the padding columns keep zero
-/// gradients, so they add nothing to the structure tensor or the mismatch vector.
+/// gradients, so whatever `j` holds there adds nothing to the mismatch vector.
 struct Window {
     side: usize,
     stride: usize,
-    i: Vec<f32>,
-    ix: Vec<f32>,
-    iy: Vec<f32>,
-    j: Vec<f32>,
-    rows: RowScratch,
+    i: Vec<i16>,
+    ix: Vec<i16>,
+    iy: Vec<i16>,
+    j: Vec<i16>,
 }
 
 impl Window {
@@ -257,151 +292,200 @@ impl Window {
         Self {
             side,
             stride,
-            i: vec![0.0; n],
-            ix: vec![0.0; n],
-            iy: vec![0.0; n],
-            j: vec![0.0; n],
-            rows: RowScratch::new(stride),
+            i: vec![0; n],
+            ix: vec![0; n],
+            iy: vec![0; n],
+            j: vec![0; n],
         }
     }
 
     fn sample_template(&mut self, l: &Level, x0: f32, y0: f32) {
-        let (at, size, rows) = ((x0, y0), (self.side, self.stride), &mut self.rows);
-        sample(&l.img, at, 1.0, &mut self.i, size, rows);
-        sample(&l.gx, at, 1.0 / SCHARR_GAIN, &mut self.ix, size, rows);
-        sample(&l.gy, at, 1.0 / SCHARR_GAIN, &mut self.iy, size, rows);
-    }
-
-    fn structure_tensor(&self) -> (f32, f32, f32) {
-        let (mut a11, mut a12, mut a22) = ([0f32; LANES], [0f32; LANES], [0f32; LANES]);
-        for (gx, gy) in self.ix.chunks_exact(LANES).zip(self.iy.chunks_exact(LANES)) {
-            for k in 0..LANES {
-                a11[k] += gx[k] * gx[k];
-                a12[k] += gx[k] * gy[k];
-                a22[k] += gy[k] * gy[k];
-            }
-        }
-        (a11.iter().sum(), a12.iter().sum(), a22.iter().sum())
-    }
-
-    /// `b = Σ (I − J) ∇I` with J sampled at window origin (x0, y0) of `next`.
-    fn mismatch(&mut self, next: &GrayImage, x0: f32, y0: f32) -> (f32, f32) {
+        let (origin, w) = split(x0, y0);
         let size = (self.side, self.stride);
-        sample(next, (x0, y0), 1.0, &mut self.j, size, &mut self.rows);
-        let (mut b1, mut b2) = ([0f32; LANES], [0f32; LANES]);
-        let grads = lanes(&self.ix).zip(lanes(&self.iy));
-        for ((i, j), (gx, gy)) in lanes(&self.i).zip(lanes(&self.j)).zip(grads) {
-            for k in 0..LANES {
-                let diff = i[k] - j[k];
-                b1[k] += diff * gx[k];
-                b2[k] += diff * gy[k];
-            }
+        sample(&l.img, origin, w, W_BITS - I_BITS, &mut self.i, size);
+        sample(&l.gx, origin, w, W_BITS, &mut self.ix, size);
+        sample(&l.gy, origin, w, W_BITS, &mut self.iy, size);
+        for row in self
+            .ix
+            .chunks_exact_mut(self.stride)
+            .chain(self.iy.chunks_exact_mut(self.stride))
+        {
+            row[self.side..].fill(0);
         }
-        (b1.iter().sum(), b2.iter().sum())
+    }
+
+    /// `G = Σ ∇I ∇Iᵀ` in grey²/px².
+    fn structure_tensor(&self) -> (f32, f32, f32) {
+        let f = |a: &[i16], b: &[i16]| dot(a, b) as f32 * SUM_SCALE;
+        (
+            f(&self.ix, &self.ix),
+            f(&self.ix, &self.iy),
+            f(&self.iy, &self.iy),
+        )
+    }
+
+    /// `b = Σ (I − J) ∇I` in grey²/px, with J sampled at window origin (x0, y0) of `next`.
+    fn mismatch(&mut self, next: &GrayImage, x0: f32, y0: f32) -> (f32, f32) {
+        let (origin, w) = split(x0, y0);
+        let size = (self.side, self.stride);
+        sample(next, origin, w, W_BITS - I_BITS, &mut self.j, size);
+        let b1 = diff_dot(&self.i, &self.j, &self.ix);
+        let b2 = diff_dot(&self.i, &self.j, &self.iy);
+        (b1 as f32 * SUM_SCALE, b2 as f32 * SUM_SCALE)
     }
 }
 
-fn lanes(v: &[f32]) -> std::slice::ChunksExact<'_, f32> {
-    v.chunks_exact(LANES)
+/// `Σ a·b` over equal-length slices, in [`BLOCK`]-long `i32` sums (plain multiply-add of
+/// sign-extended `i16`, which the compiler turns into SSE2 `pmaddwd`).
+fn dot(a: &[i16], b: &[i16]) -> i64 {
+    a.chunks(BLOCK)
+        .zip(b.chunks(BLOCK))
+        .map(|(a, b)| {
+            let s: i32 = a
+                .iter()
+                .zip(b)
+                .map(|(&a, &b)| i32::from(a) * i32::from(b))
+                .sum();
+            i64::from(s)
+        })
+        .sum()
 }
 
-/// Row buffers of the separable bilinear sampler, `stride` (+1) long so that the loops run in
-/// whole [`LANES`]-wide chunks: one source row converted to f32 (zero past the window), and
-/// the horizontally interpolated current and previous rows.
-struct RowScratch {
-    src: Vec<f32>,
-    cur: Vec<f32>,
-    prev: Vec<f32>,
+/// `Σ (i − j)·g` over equal-length slices, as [`dot`].
+fn diff_dot(i: &[i16], j: &[i16], g: &[i16]) -> i64 {
+    i.chunks(BLOCK)
+        .zip(j.chunks(BLOCK))
+        .zip(g.chunks(BLOCK))
+        .map(|((i, j), g)| {
+            let s: i32 = i
+                .iter()
+                .zip(j)
+                .zip(g)
+                .map(|((&i, &j), &g)| i32::from(i.wrapping_sub(j)) * i32::from(g))
+                .sum();
+            i64::from(s)
+        })
+        .sum()
 }
 
-impl RowScratch {
-    fn new(stride: usize) -> Self {
-        Self {
-            src: vec![0.0; stride + 1],
-            cur: vec![0.0; stride],
-            prev: vec![0.0; stride],
+/// Splits a window origin into its integer pixel and the 14-bit bilinear weights of its
+/// fraction `(ax, ay)`: `[(1−ax)(1−ay), ax(1−ay), (1−ax)ay, ax·ay]`, the last one taking the
+/// rounding remainder so that they sum to exactly 2¹⁴ (OpenCV's `iw00 … iw11`).
+fn split(x0: f32, y0: f32) -> ((isize, isize), [i16; 4]) {
+    let floor = |v: f32| {
+        let i = v as isize;
+        if (i as f32) > v {
+            i - 1
+        } else {
+            i
         }
-    }
+    };
+    let (ix, iy) = (floor(x0), floor(y0));
+    let (ax, ay) = (x0 - ix as f32, y0 - iy as f32);
+    let one = (1u32 << W_BITS) as f32;
+    let w00 = round_ties_even((1.0 - ax) * (1.0 - ay) * one) as i32;
+    let w01 = round_ties_even(ax * (1.0 - ay) * one) as i32;
+    let w10 = round_ties_even((1.0 - ax) * ay * one) as i32;
+    let w11 = (1 << W_BITS) - w00 - w01 - w10;
+    // (w11 is −1 when the other three round up together: clamped, the sum is then 2¹⁴ + 1)
+    let w = [w00, w01, w10, w11].map(|w| w.clamp(0, 1 << W_BITS) as i16);
+    ((ix, iy), w)
 }
 
-/// Bilinearly samples a `side × side` grid with unit spacing whose first sample is at (x0, y0),
-/// times `gain`, into the first `side` entries of each `stride`-long row of `out` (the rest of
-/// each row is set to zero), clamping coordinates to the image (replicated border) when the
-/// window leaves it.
-///
-/// Inside the image the interpolation runs separably: each of the `side + 1` source rows is
-/// converted and interpolated along x once, then consecutive rows are blended along y, so every
-/// source pixel is converted once instead of four times.
-fn sample<T: Copy + Into<f32>>(
-    img: &Image<T>,
-    (x0, y0): (f32, f32),
-    gain: f32,
-    out: &mut [f32],
-    (side, stride): (usize, usize),
-    rows: &mut RowScratch,
-) {
-    let (w, h) = (img.width(), img.height());
-    let (fx, fy) = (x0.floor(), y0.floor());
-    let (ax, ay) = (x0 - fx, y0 - fy);
-    let (ix, iy) = (fx as isize, fy as isize);
-    let data = img.data();
-    let inside = ix >= 0 && iy >= 0 && ix as usize + side < w && iy as usize + side < h;
-    if !inside {
-        sample_clamped(img, (ix, iy), (ax, ay), gain, out, (side, stride));
-        return;
-    }
-    let (ix, iy) = (ix as usize, iy as usize);
-    let src_rows = data[iy * w..(iy + side + 1) * w].chunks_exact(w);
-    let mut dst_rows = out.chunks_exact_mut(stride);
-    for (r, src) in src_rows.enumerate() {
-        for (c, &v) in rows.src.iter_mut().zip(&src[ix..=ix + side]) {
-            *c = gain * v.into();
-        }
-        let (left, right) = (lanes(&rows.src[..stride]), lanes(&rows.src[1..]));
-        for ((o, a), b) in rows.cur.chunks_exact_mut(LANES).zip(left).zip(right) {
-            for k in 0..LANES {
-                o[k] = a[k] + ax * (b[k] - a[k]);
-            }
-        }
-        if r > 0 {
-            let Some(dst) = dst_rows.next() else { break };
-            let (top, bottom) = (lanes(&rows.prev), lanes(&rows.cur));
-            for ((o, t), b) in dst.chunks_exact_mut(LANES).zip(top).zip(bottom) {
-                for k in 0..LANES {
-                    o[k] = t[k] + ay * (b[k] - t[k]);
-                }
-            }
-            dst[side..].fill(0.0);
-        }
-        std::mem::swap(&mut rows.cur, &mut rows.prev);
-    }
-}
-
-/// [`sample`] near the border: four clamped taps per sample.
-fn sample_clamped<T: Copy + Into<f32>>(
+/// Bilinear samples of `img` on the `side × side` grid with unit spacing at integer `origin`
+/// plus the fraction whose weights are `w`, rounded and shifted right by `shift` bits, into
+/// the `stride`-long rows of `out` (all `stride` columns are sampled). The source rows are read
+/// in place when the `(side + 1) × (stride + 1)` patch lies inside the image; otherwise the patch
+/// is first gathered with coordinates clamped to the image (replicated border).
+fn sample<T: Copy + Into<i32>>(
     img: &Image<T>,
     (ix, iy): (isize, isize),
-    (ax, ay): (f32, f32),
-    gain: f32,
-    out: &mut [f32],
+    w: [i16; 4],
+    shift: u32,
+    out: &mut [i16],
     (side, stride): (usize, usize),
 ) {
-    let (w, h) = (img.width(), img.height());
-    let data = img.data();
-    let at = |x: isize, y: isize| {
-        let (x, y) = (
-            x.clamp(0, w as isize - 1) as usize,
-            y.clamp(0, h as isize - 1) as usize,
+    let (width, height) = (img.width(), img.height());
+    let inside = ix >= 0 && iy >= 0 && ix as usize + stride < width && iy as usize + side < height;
+    let (x, y) = (ix as usize, iy as usize);
+    let rows = inside
+        .then(|| {
+            img.data()
+                .get(y * width + x..(y + side) * width + x + stride + 1)
+        })
+        .flatten();
+    if let Some(rows) = rows {
+        interpolate(rows, width, w, shift, out, stride);
+        return;
+    }
+    // columns ix..=ix+stride: `left` of them left of the image, then `first..end` inside, then
+    // the rest right of it
+    let n = stride + 1;
+    let left = (-ix).clamp(0, n as isize) as usize;
+    let first = ix.max(0) as usize;
+    let end = (ix + n as isize).clamp(0, width as isize) as usize;
+    let right = n - left - end.saturating_sub(first);
+    let mut patch: Vec<T> = Vec::with_capacity((side + 1) * n);
+    for py in iy..=iy + side as isize {
+        let start = py.min(height as isize - 1).max(0) as usize * width;
+        let Some(line) = img.data().get(start..start + width) else {
+            break;
+        };
+        let (Some(&lo), Some(&hi)) = (line.first(), line.last()) else {
+            break;
+        };
+        patch.extend(std::iter::repeat(lo).take(left));
+        patch.extend_from_slice(line.get(first..end).unwrap_or_default());
+        patch.extend(std::iter::repeat(hi).take(right));
+    }
+    if patch.len() == (side + 1) * (stride + 1) {
+        interpolate(&patch, stride + 1, w, shift, out, stride);
+    } else {
+        out.fill(0); // an empty image
+    }
+}
+
+/// The interpolation loop of [`sample`]: `src` holds the patch's rows `pitch` apart, each at
+/// least `stride + 1` long.
+fn interpolate<T: Copy + Into<i32>>(
+    src: &[T],
+    pitch: usize,
+    w: [i16; 4],
+    shift: u32,
+    out: &mut [i16],
+    stride: usize,
+) {
+    // The mask (a no-op: weights are in 0..=2¹⁴) tells the compiler the products are of 15-bit
+    // non-negative numbers, which it then multiplies in 16-bit lanes (SSE2 pmaddwd/pmullw).
+    let [w00, w01, w10, w11] = w.map(|v| [i32::from(v) & 0x7fff; LANES]);
+    let half = 1i32 << (shift - 1);
+    let rows = src
+        .chunks(pitch)
+        .map(|r| r.get(..=stride).unwrap_or_default());
+    for ((top, bottom), o) in rows
+        .clone()
+        .zip(rows.skip(1))
+        .zip(out.chunks_exact_mut(stride))
+    {
+        if top.len() != stride + 1 || bottom.len() != stride + 1 {
+            break;
+        }
+        let (t0, t1) = (
+            top[..stride].chunks_exact(LANES),
+            top[1..].chunks_exact(LANES),
         );
-        data.get(y * w + x).map_or(0.0, |&v| gain * v.into())
-    };
-    for (r, o) in out.chunks_exact_mut(stride).enumerate() {
-        let y = iy + r as isize;
-        for (c, o) in o[..side].iter_mut().enumerate() {
-            let x = ix + c as isize;
-            let top = at(x, y) + ax * (at(x + 1, y) - at(x, y));
-            let bottom = at(x, y + 1) + ax * (at(x + 1, y + 1) - at(x, y + 1));
-            *o = top + ay * (bottom - top);
+        let (b0, b1) = (
+            bottom[..stride].chunks_exact(LANES),
+            bottom[1..].chunks_exact(LANES),
+        );
+        for ((((o, a), b), c), d) in o.chunks_exact_mut(LANES).zip(t0).zip(t1).zip(b0).zip(b1) {
+            for k in 0..LANES {
+                let v = a[k].into() * w00[k]
+                    + b[k].into() * w01[k]
+                    + c[k].into() * w10[k]
+                    + d[k].into() * w11[k];
+                o[k] = ((v + half) >> shift) as i16;
+            }
         }
     }
 }
@@ -508,6 +592,73 @@ mod tests {
         assert!(tl.iter().all(|t| t.ok && t.fb_error_px < 0.1), "{tl:?}");
         let tr = track(&pa, &pb, &right, &cfg).unwrap();
         assert!(tr.iter().filter(|t| t.ok).count() <= 1, "{tr:?}");
+    }
+
+    /// Float bilinear interpolation with clamped taps, the reference of the fixed-point sampler.
+    fn bilinear<T: Copy + Into<f32>>(img: &Image<T>, x: f32, y: f32) -> f32 {
+        let (w, h) = (img.width() as isize, img.height() as isize);
+        let at = |x: isize, y: isize| {
+            let (x, y) = (x.clamp(0, w - 1), y.clamp(0, h - 1));
+            (*img.get(x as usize, y as usize).unwrap()).into()
+        };
+        let (fx, fy) = (x.floor(), y.floor());
+        let (ax, ay) = (x - fx, y - fy);
+        let (ix, iy) = (fx as isize, fy as isize);
+        let top = at(ix, iy) * (1.0 - ax) + at(ix + 1, iy) * ax;
+        let bottom = at(ix, iy + 1) * (1.0 - ax) + at(ix + 1, iy + 1) * ax;
+        top * (1.0 - ay) + bottom * ay
+    }
+
+    #[test]
+    fn fixed_point_sampling_matches_float_bilinear() {
+        let img = texture(64, 48, 0.0, 0.0, 11);
+        let grads = scharr(&img);
+        let mut rng = ChaCha8Rng::seed_from_u64(4);
+        let (side, stride) = (11, 16);
+        let mut out = vec![0i16; side * stride];
+        // origins inside, across every border and fully outside (clamped path)
+        for _ in 0..300 {
+            let (x0, y0) = (rng.gen_range(-20.0..60.0f32), rng.gen_range(-20.0..45.0f32));
+            let (origin, w) = split(x0, y0);
+            for k in 0..3 {
+                let (reference, scale): (Box<dyn Fn(f32, f32) -> f32>, f32) = match k {
+                    0 => {
+                        sample(&img, origin, w, W_BITS - I_BITS, &mut out, (side, stride));
+                        (Box::new(|x, y| bilinear(&img, x, y)), 32.0)
+                    }
+                    1 => {
+                        sample(&grads.gx, origin, w, W_BITS, &mut out, (side, stride));
+                        (Box::new(|x, y| bilinear(&grads.gx, x, y)), 1.0)
+                    }
+                    _ => {
+                        sample(&grads.gy, origin, w, W_BITS, &mut out, (side, stride));
+                        (Box::new(|x, y| bilinear(&grads.gy, x, y)), 1.0)
+                    }
+                };
+                for r in 0..side {
+                    for c in 0..side {
+                        let want = reference(x0 + c as f32, y0 + r as f32) * scale;
+                        let got = f32::from(out[r * stride + c]);
+                        assert!(
+                            (got - want).abs() <= 1.5,
+                            "kernel {k} at ({x0}, {y0}) + ({c}, {r}): {got} vs {want}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn window_sums_do_not_overflow_at_the_extremes() {
+        // the largest magnitudes the window can hold (I, J in 0..=8161 with one unit of weight
+        // rounding, |∇I| ≤ 4081), over the largest window
+        let n = 101 * 104;
+        let (bright, dark, g) = (vec![8161i16; n], vec![0i16; n], vec![-4081i16; n]);
+        let want = n as i64 * 8161 * 4081;
+        assert_eq!(diff_dot(&dark, &bright, &g), want);
+        assert_eq!(diff_dot(&bright, &dark, &g), -want);
+        assert_eq!(dot(&g, &g), n as i64 * 4081 * 4081);
     }
 
     #[test]
