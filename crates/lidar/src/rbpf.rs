@@ -69,6 +69,10 @@ pub struct RbpfConfig {
     pub update_angular_rad: f64,
     /// Resample when the effective sample size drops below this fraction of the particles.
     pub resample_threshold: f64,
+    /// Accumulated log weights are divided by this when normalised for resampling, since the
+    /// beams of successive scans are far from independent (GMapping divides by the particle
+    /// count times `obsSigmaGain`).
+    pub weight_temperature: f64,
     /// Scans with fewer usable beams are skipped.
     pub min_scan_points: usize,
 }
@@ -92,6 +96,7 @@ impl Default for RbpfConfig {
             update_linear_m: 0.3,
             update_angular_rad: 0.2,
             resample_threshold: 0.5,
+            weight_temperature: 1.0,
             min_scan_points: 20,
         }
     }
@@ -136,6 +141,11 @@ impl RbpfConfig {
                 "beam_stride",
                 self.beam_stride as f64,
                 self.beam_stride >= 1,
+            ),
+            (
+                "weight_temperature",
+                self.weight_temperature,
+                self.weight_temperature.is_finite() && self.weight_temperature >= 1.0,
             ),
         ];
         let shared = filter_checks(
@@ -361,7 +371,12 @@ impl Rbpf {
     }
 
     fn resample_if_needed(&mut self) {
-        let log_weights: Vec<f64> = self.particles.iter().map(|p| p.log_weight).collect();
+        let temperature = self.config.weight_temperature;
+        let log_weights: Vec<f64> = self
+            .particles
+            .iter()
+            .map(|p| p.log_weight / temperature)
+            .collect();
         let weights = normalized_weights(&log_weights);
         let n = self.particles.len();
         if effective_sample_size(&weights) >= self.config.resample_threshold * n as f64 {
@@ -371,7 +386,7 @@ impl Rbpf {
                 .copied()
                 .fold(f64::NEG_INFINITY, f64::max);
             for p in &mut self.particles {
-                p.log_weight -= max;
+                p.log_weight -= max * temperature;
             }
             return;
         }

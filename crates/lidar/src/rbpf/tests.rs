@@ -120,6 +120,20 @@ fn same_seed_same_result_and_other_seed_differs() {
 }
 
 #[test]
+fn tempered_weights_resample_less_often() {
+    let truth = room_loop();
+    let (scans, _) = simulate(&truth[..150]);
+    let plain = run_rbpf(&scans, &small_config(), |_| {}).unwrap();
+    let tempered = RbpfConfig {
+        weight_temperature: 1000.0,
+        ..small_config()
+    };
+    let out = run_rbpf(&scans, &tempered, |_| {}).unwrap();
+    let (a, b) = (plain.stats.resamples, out.stats.resamples);
+    assert!(a > 0 && b < a, "resamples: plain {a}, tempered {b}");
+}
+
+#[test]
 fn scan_odometry_replaces_missing_wheel_odometry() {
     let truth = room_loop();
     let (mut scans, _) = simulate(&truth[..150]);
@@ -186,6 +200,10 @@ fn invalid_config_is_rejected() {
         },
         RbpfConfig {
             resample_threshold: 2.0,
+            ..RbpfConfig::default()
+        },
+        RbpfConfig {
+            weight_temperature: 0.5,
             ..RbpfConfig::default()
         },
     ] {
