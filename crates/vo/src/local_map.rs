@@ -15,7 +15,7 @@ use nalgebra::{Point2, Point3, Vector3};
 use serde::{Deserialize, Serialize};
 use slamkit_core::camera::Intrinsics;
 use slamkit_core::Pose3;
-use slamkit_vision::matching::hamming;
+use slamkit_vision::matching::match_descriptors_within;
 use slamkit_vision::{Descriptor, MatchConfig};
 
 use crate::error::VoError;
@@ -50,8 +50,8 @@ impl Default for LocalMapConfig {
             window_frames: 35,
             keyframe_every: 2,
             max_landmarks: 6000,
-            search_radius_px: 15.0,
-            recovery_radius_px: 60.0,
+            search_radius_px: 45.0,
+            recovery_radius_px: 120.0,
             min_window_matches: 50,
             merge_radius_px: 3.0,
         }
@@ -130,8 +130,28 @@ pub struct Observation {
     pub frame: usize,
 }
 
-/// A landmark projected into a camera: its id, pixel and descriptor.
-pub type Projected = (u64, Point2<f64>, Descriptor);
+/// A key-frame feature: its observation, its pixel and the landmark it was matched to.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Seen {
+    /// The observation.
+    pub observation: Observation,
+    /// Pixel in the key frame.
+    pub pixel: Point2<f64>,
+    /// The landmark it was matched to while tracking, if any.
+    pub landmark: Option<u64>,
+}
+
+/// How an unmatched key-frame feature finds the landmark it duplicates.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MergeConfig {
+    /// Farthest distance between its pixel and the landmark's projection \[px\].
+    pub radius_px: f64,
+    /// Farthest descriptor distance \[bits\].
+    pub max_distance: u32,
+}
+
+/// Landmarks projected into a camera, index-aligned: ids, descriptors and pixels.
+pub type Projected = (Vec<u64>, Vec<Descriptor>, Vec<[f32; 2]>);
 
 /// Landmarks by id.
 #[derive(Debug, Clone, Default)]
@@ -229,185 +249,102 @@ impl LocalMap {
         }
     }
 
-    /// The landmarks with a descriptor that lie in front of the camera and project inside
-    /// its image, in id order.
-    pub fn project(&self, camera_from_world: &Pose3, k: &Intrinsics) -> Vec<Projected> {
-        let mut out: Vec<Projected> = self
-            .landmarks
+    /// Adds a key frame seen from `camera_from_world` through `k`: a feature matched to a
+    /// landmark while tracking merges into it; an unmatched one merges into the landmark not
+    /// yet observed in this frame that projects within `merge.radius_px` of it with the
+    /// mutually nearest descriptor within `merge.max_distance` (a point missed by tracking
+    /// does not come back as a duplicate); the others become new landmarks. Returns the
+    /// landmark of each feature.
+    pub fn add_keyframe(
+        &mut self,
+        seen: &[Seen],
+        camera_from_world: &Pose3,
+        k: &Intrinsics,
+        merge: &MergeConfig,
+    ) -> Vec<u64> {
+        let mut ids: Vec<Option<u64>> = seen
             .iter()
-            .filter_map(|(&id, l)| {
-                let p = camera_from_world * l.position();
-                if p.z <= 0.0 {
-                    return None;
-                }
-                let px = Point2::new(k.fx * p.x / p.z + k.cx, k.fy * p.y / p.z + k.cy);
-                k.contains(&px).then_some((id, px, l.descriptor?))
+            .map(|s| s.landmark.filter(|&id| self.observe(id, &s.observation)))
+            .collect();
+        let frame = seen.first().map(|s| s.observation.frame);
+        let (lm_ids, lm_descriptors, lm_pixels) = self.project(camera_from_world, k, frame);
+        let unmatched: Vec<(usize, Descriptor, [f32; 2])> = seen
+            .iter()
+            .zip(&ids)
+            .enumerate()
+            .filter(|(_, (_, id))| id.is_none())
+            .filter_map(|(i, (s, _))| {
+                let px = [s.pixel.x as f32, s.pixel.y as f32];
+                Some((i, s.observation.descriptor?, px))
             })
             .collect();
-        out.sort_unstable_by_key(|(id, _, _)| *id);
+        let query_d: Vec<Descriptor> = unmatched.iter().map(|u| u.1).collect();
+        let query_px: Vec<[f32; 2]> = unmatched.iter().map(|u| u.2).collect();
+        let nearest = MatchConfig {
+            max_distance: merge.max_distance,
+            ratio: 1.0,
+            cross_check: true,
+        };
+        // the lists are index-aligned; a radius that is not positive merges nothing
+        let merges = match_descriptors_within(
+            (&query_d, &query_px),
+            (&lm_descriptors, &lm_pixels),
+            merge.radius_px as f32,
+            &nearest,
+        )
+        .unwrap_or_default();
+        for m in merges {
+            let (Some(&(i, _, _)), Some(&id)) =
+                (unmatched.get(m.query_idx), lm_ids.get(m.train_idx))
+            else {
+                continue;
+            };
+            if let (Some(s), Some(slot)) = (seen.get(i), ids.get_mut(i)) {
+                *slot = self.observe(id, &s.observation).then_some(id);
+            }
+        }
+        seen.iter()
+            .zip(ids)
+            .map(|(s, id)| id.unwrap_or_else(|| self.insert(&s.observation)))
+            .collect()
+    }
+
+    /// The landmarks with a descriptor that lie in front of the camera and project inside
+    /// its image, in id order, leaving out those already observed in frame `skip_observed_in`.
+    pub fn project(
+        &self,
+        camera_from_world: &Pose3,
+        k: &Intrinsics,
+        skip_observed_in: Option<usize>,
+    ) -> Projected {
+        let mut v: Vec<(u64, Descriptor, [f32; 2])> = self
+            .landmarks
+            .iter()
+            .filter(|(_, l)| skip_observed_in != Some(l.last_observed))
+            .filter_map(|(&id, l)| {
+                let px = project(k, &(camera_from_world * l.position()))?;
+                Some((id, l.descriptor?, px))
+            })
+            .collect();
+        v.sort_unstable_by_key(|(id, _, _)| *id);
+        let mut out: Projected = (Vec::new(), Vec::new(), Vec::new());
+        for (id, d, px) in v {
+            out.0.push(id);
+            out.1.push(d);
+            out.2.push(px);
+        }
         out
     }
-
-    /// Landmarks observed (not only seen) in `frame`.
-    fn observed_in(&self, id: u64, frame: usize) -> bool {
-        self.landmarks
-            .get(&id)
-            .is_some_and(|l| l.last_observed == frame)
-    }
-
-    /// Merges `o`, a key-frame feature seen at `pixel` that matched no landmark, into the
-    /// landmark of `projected` (the map projected into the key frame, indexed by `grid`)
-    /// nearest in descriptor within `radius_px` and `max_distance` bits and not yet observed
-    /// in this frame; inserts it as a new landmark when there is none. Returns its id.
-    pub fn merge_or_insert(
-        &mut self,
-        o: &Observation,
-        pixel: Point2<f64>,
-        projected: &[Projected],
-        grid: &PixelGrid,
-        radius_px: f64,
-        max_distance: u32,
-    ) -> u64 {
-        let Some(d) = o.descriptor else {
-            return self.insert(o);
-        };
-        let nearest = grid
-            .near(pixel, radius_px)
-            .filter_map(|i| projected.get(i))
-            .filter(|(id, px, _)| {
-                (px - pixel).norm_squared() <= radius_px * radius_px
-                    && !self.observed_in(*id, o.frame)
-            })
-            .map(|(id, _, ld)| (hamming(&d, ld), *id))
-            .filter(|&(dist, _)| dist <= max_distance)
-            .min();
-        match nearest {
-            Some((_, id)) if self.observe(id, o) => id,
-            _ => self.insert(o),
-        }
-    }
 }
 
-/// Indices of pixels bucketed in square cells, for radius queries.
-#[derive(Debug, Clone)]
-pub struct PixelGrid {
-    cell_px: f64,
-    cols: usize,
-    rows: usize,
-    cells: Vec<Vec<usize>>,
-}
-
-impl PixelGrid {
-    /// Buckets the `pixels` of a `width` × `height` image (indices into the slice; pixels
-    /// outside the image are left out) in cells of `cell_px` (> 0).
-    pub fn new(
-        pixels: impl IntoIterator<Item = (usize, Point2<f64>)>,
-        width: usize,
-        height: usize,
-        cell_px: f64,
-    ) -> Self {
-        let cell_px = cell_px.max(1.0);
-        let cols = (width as f64 / cell_px).ceil().max(1.0) as usize;
-        let rows = (height as f64 / cell_px).ceil().max(1.0) as usize;
-        let mut cells = vec![Vec::new(); cols * rows];
-        for (i, p) in pixels {
-            if let Some(c) = Self::cell_of(cell_px, cols, rows, p) {
-                if let Some(v) = cells.get_mut(c.1 * cols + c.0) {
-                    v.push(i);
-                }
-            }
-        }
-        Self {
-            cell_px,
-            cols,
-            rows,
-            cells,
-        }
+/// The pixel of camera-frame point `p` when it lies in front of the camera and inside its
+/// image.
+pub fn project(k: &Intrinsics, p: &Point3<f64>) -> Option<[f32; 2]> {
+    if p.z <= 0.0 || !p.z.is_finite() {
+        return None;
     }
-
-    fn cell_of(cell_px: f64, cols: usize, rows: usize, p: Point2<f64>) -> Option<(usize, usize)> {
-        let (cx, cy) = ((p.x / cell_px).floor(), (p.y / cell_px).floor());
-        (cx >= 0.0 && cy >= 0.0 && (cx as usize) < cols && (cy as usize) < rows)
-            .then_some((cx as usize, cy as usize))
-    }
-
-    /// Indices in the cells overlapping the square of half-side `radius_px` around `p` (a
-    /// superset of those within the radius).
-    pub fn near(&self, p: Point2<f64>, radius_px: f64) -> impl Iterator<Item = usize> + '_ {
-        let span = |v: f64, n: usize| {
-            let lo = ((v - radius_px) / self.cell_px).floor().max(0.0) as usize;
-            let hi = ((v + radius_px) / self.cell_px).floor();
-            let hi = if hi < 0.0 {
-                None
-            } else {
-                Some((hi as usize).min(n - 1))
-            };
-            hi.filter(|&h| lo <= h).map(|h| lo..=h)
-        };
-        let xs = span(p.x, self.cols);
-        let ys = span(p.y, self.rows);
-        let ranges = xs.zip(ys);
-        ranges.into_iter().flat_map(move |(xs, ys)| {
-            ys.flat_map(move |y| xs.clone().map(move |x| y * self.cols + x))
-                .filter_map(|c| self.cells.get(c))
-                .flatten()
-                .copied()
-        })
-    }
-}
-
-/// Matches landmarks projected into the predicted camera to the features (`pixels`,
-/// `descriptors`, bucketed in `grid`) within `radius_px` of each projection: the nearest
-/// descriptor, kept when within `config.max_distance`, passing Lowe's ratio test against the
-/// second nearest in the window and (with `config.cross_check`) mutually nearest among the
-/// windows that hold the feature. Returns (index into `projected`, feature index) pairs.
-pub fn match_in_windows(
-    projected: &[Projected],
-    pixels: &[Point2<f64>],
-    descriptors: &[Descriptor],
-    grid: &PixelGrid,
-    radius_px: f64,
-    config: &MatchConfig,
-) -> Vec<(usize, usize)> {
-    let r2 = radius_px * radius_px;
-    let mut feature_best = vec![(u32::MAX, usize::MAX); pixels.len()];
-    let mut rows = Vec::with_capacity(projected.len());
-    for (li, (_, lpx, ld)) in projected.iter().enumerate() {
-        let (mut best, mut second, mut best_f) = (u32::MAX, u32::MAX, usize::MAX);
-        for fi in grid.near(*lpx, radius_px) {
-            let (Some(px), Some(fd), Some(fb)) = (
-                pixels.get(fi),
-                descriptors.get(fi),
-                feature_best.get_mut(fi),
-            ) else {
-                continue;
-            };
-            if (px - lpx).norm_squared() > r2 {
-                continue;
-            }
-            let d = hamming(ld, fd);
-            if d < best {
-                (second, best, best_f) = (best, d, fi);
-            } else if d < second {
-                second = d;
-            }
-            if d < fb.0 {
-                *fb = (d, li);
-            }
-        }
-        rows.push((best, second, best_f));
-    }
-    rows.into_iter()
-        .enumerate()
-        .filter(|&(li, (best, second, fi))| {
-            let ratio_ok = config.ratio >= 1.0
-                || second == u32::MAX
-                || (best as f32) < config.ratio * second as f32;
-            let cross_ok = !config.cross_check || feature_best.get(fi).is_some_and(|b| b.1 == li);
-            best <= config.max_distance && ratio_ok && cross_ok
-        })
-        .map(|(li, (_, _, fi))| (li, fi))
-        .collect()
+    let px = k.to_pixel(&Point2::new(p.x / p.z, p.y / p.z));
+    k.contains(&px).then_some([px.x as f32, px.y as f32])
 }
 
 #[cfg(test)]
@@ -457,6 +394,100 @@ mod tests {
             "the least recently seen leaves first"
         );
         assert!(map.get(kept).is_some());
+    }
+
+    /// 300 points with random descriptors seen by a camera moving forward over 6 key frames;
+    /// tracking matched the even points and missed the odd ones, whose observations must
+    /// merge into their landmarks rather than duplicate them; one new point per frame.
+    #[test]
+    fn a_synthetic_scene_seen_repeatedly_has_no_duplicates_and_mean_positions() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let k = Intrinsics::from_array([500.0, 500.0, 320.0, 240.0], 640, 480);
+        let points: Vec<(Point3<f64>, Descriptor)> = (0..300)
+            .map(|_| {
+                let p = Point3::new(
+                    rng.gen_range(-1.5..1.5),
+                    rng.gen_range(-1.0..1.0),
+                    rng.gen_range(5.0..10.0),
+                );
+                (p, [rng.gen(), rng.gen(), rng.gen(), rng.gen()])
+            })
+            .collect();
+        let merge = MergeConfig {
+            radius_px: 3.0,
+            max_distance: 64,
+        };
+        let mut map = LocalMap::new();
+        let mut ids: Vec<Option<u64>> = vec![None; points.len()];
+        let mut observed: Vec<Vec<Observation>> = vec![Vec::new(); points.len()];
+        for frame in 0..6 {
+            let world_from_camera =
+                Pose3::translation(0.05 * frame as f64, 0.0, 0.2 * frame as f64);
+            let camera_from_world = world_from_camera.inverse();
+            let seen: Vec<Seen> = points
+                .iter()
+                .enumerate()
+                .map(|(i, (p, d))| {
+                    let c = camera_from_world * p;
+                    let pixel = k.to_pixel(&Point2::new(c.x / c.z, c.y / c.z));
+                    let mut descriptor = *d;
+                    descriptor[(i + frame) % 4] ^= 0b1011 << (frame * 3 % 60);
+                    let o = Observation {
+                        world: p + Vector3::new(rng.gen(), rng.gen(), rng.gen()) * 0.01,
+                        weight: 1.0 / (1.0 + c.z * c.z),
+                        descriptor: Some(descriptor),
+                        frame,
+                    };
+                    observed[i].push(o);
+                    let landmark = ids[i].filter(|_| i % 2 == 0);
+                    Seen {
+                        observation: o,
+                        pixel,
+                        landmark,
+                    }
+                })
+                .collect();
+            let new_point = Seen {
+                observation: Observation {
+                    world: Point3::new(0.0, 0.0, 3.0),
+                    weight: 1.0,
+                    descriptor: Some([rng.gen(), rng.gen(), rng.gen(), rng.gen()]),
+                    frame,
+                },
+                pixel: Point2::new(320.0, 240.0),
+                landmark: None,
+            };
+            let out = map.add_keyframe(
+                &[seen, vec![new_point]].concat(),
+                &camera_from_world,
+                &k,
+                &merge,
+            );
+            for (i, id) in out.iter().take(points.len()).enumerate() {
+                assert!(
+                    ids[i].is_none_or(|old| old == *id),
+                    "point {i} frame {frame}"
+                );
+                ids[i] = Some(*id);
+            }
+        }
+        assert_eq!(
+            map.len(),
+            points.len() + 6,
+            "one landmark per point, plus the new ones"
+        );
+        for (id, obs) in ids.iter().zip(&observed) {
+            let l = map.get(id.unwrap()).unwrap();
+            assert_eq!(l.observations(), 6);
+            let w: f64 = obs.iter().map(|o| o.weight).sum();
+            let mean: Vector3<f64> = obs
+                .iter()
+                .map(|o| o.world.coords * o.weight)
+                .sum::<Vector3<f64>>()
+                / w;
+            assert!((l.position().coords - mean).norm() < 1e-12);
+        }
     }
 
     #[test]

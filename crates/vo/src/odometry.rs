@@ -12,11 +12,12 @@ use nalgebra::{Point2, Point3};
 use serde::Serialize;
 use slamkit_core::Pose3;
 use slamkit_vision::klt::track;
+use slamkit_vision::matching::match_descriptors_within;
 use slamkit_vision::{match_descriptors, Descriptor, KltPyramid};
 
 use crate::config::{FrontendKind, TrackingMode, VoConfig};
 use crate::frame::PreparedFrame;
-use crate::local_map::{match_in_windows, LocalMap, Observation, PixelGrid};
+use crate::local_map::{LocalMap, MergeConfig, Observation, Seen};
 use crate::motion::{estimate_motion, Correspondence, MotionFailure};
 
 /// A reference feature matched in the current frame: the descriptor to refresh it with, its
@@ -220,7 +221,7 @@ impl Odometry {
         };
         let matched: Vec<Match> = match self.config.frontend {
             FrontendKind::Klt => self.klt_matches(reference, frame)?,
-            FrontendKind::Orb if use_map => self.map_matches(frame, &ref_from_world),
+            FrontendKind::Orb if use_map => self.map_matches(frame, &ref_from_world)?,
             FrontendKind::Orb => orb_matches(&reference.features, frame, &self.config),
         };
         Ok(matched
@@ -280,42 +281,48 @@ impl Odometry {
     /// ORB with the local map: the landmarks projected into the predicted pose, each matched
     /// to the frame's features with depth near its projection (the search widened once when
     /// too few match).
-    fn map_matches(&self, frame: &PreparedFrame, ref_from_world: &Pose3) -> Vec<Match> {
+    fn map_matches(
+        &self,
+        frame: &PreparedFrame,
+        ref_from_world: &Pose3,
+    ) -> Result<Vec<Match>, FailReason> {
         let lm = &self.config.local_map;
         let f = &frame.features;
-        let k = &frame.camera;
         let camera_from_world = self.predicted_pose(frame.index).inverse();
-        let projected = self.map.project(&camera_from_world, k);
-        let with_depth = f.pixels.iter().zip(&f.points).enumerate();
-        let grid = PixelGrid::new(
-            with_depth.filter_map(|(i, (px, p))| p.map(|_| (i, *px))),
-            k.width,
-            k.height,
-            lm.search_radius_px,
-        );
-        let search = |r| {
-            match_in_windows(
-                &projected,
-                &f.pixels,
-                &f.descriptors,
-                &grid,
-                r,
+        let (ids, descriptors, pixels) = self.map.project(&camera_from_world, &frame.camera, None);
+        let train: Vec<usize> = (0..f.descriptors.len())
+            .filter(|&i| f.points.get(i).is_some_and(Option::is_some))
+            .collect();
+        let train_d: Vec<Descriptor> = train
+            .iter()
+            .filter_map(|&i| f.descriptors.get(i).copied())
+            .collect();
+        let train_px: Vec<[f32; 2]> = train
+            .iter()
+            .filter_map(|&i| f.pixels.get(i).map(|p| [p.x as f32, p.y as f32]))
+            .collect();
+        let search = |r: f64| {
+            match_descriptors_within(
+                (&descriptors, &pixels),
+                (&train_d, &train_px),
+                r as f32,
                 &self.config.matching,
             )
+            .map_err(|e| FailReason::Kernel(e.to_string()))
         };
-        let mut pairs = search(lm.search_radius_px);
-        if pairs.len() < lm.min_window_matches {
-            pairs = search(lm.recovery_radius_px);
+        let mut matches = search(lm.search_radius_px)?;
+        if matches.len() < lm.min_window_matches {
+            matches = search(lm.recovery_radius_px)?;
         }
-        pairs
+        Ok(matches
             .into_iter()
-            .filter_map(|(li, fi)| {
-                let (id, _, descriptor) = *projected.get(li)?;
-                let landmark = self.map.get(id)?;
+            .filter_map(|m| {
+                let id = *ids.get(m.query_idx)?;
+                let fi = *train.get(m.train_idx)?;
                 let feature = RefFeature {
                     pixel: Point2::origin(),
-                    point: ref_from_world * landmark.position(),
-                    descriptor: Some(descriptor),
+                    point: ref_from_world * self.map.get(id)?.position(),
+                    descriptor: descriptors.get(m.query_idx).copied(),
                     landmark: Some(id),
                 };
                 Some((
@@ -325,7 +332,7 @@ impl Odometry {
                     *f.points.get(fi)?,
                 ))
             })
-            .collect()
+            .collect())
     }
 
     /// Makes `frame` the reference: the inlier candidates `kept` first (keeping their
@@ -375,10 +382,8 @@ impl Odometry {
         });
     }
 
-    /// Key frames: matched features merge into their landmarks, the others into a landmark
-    /// projecting next to them with a close descriptor or, when there is none, become new
-    /// landmarks; other frames only mark their matched landmarks as seen. Each observation is
-    /// weighted by its inverse depth variance.
+    /// Key frames enter the map ([`LocalMap::add_keyframe`]), each observation weighted by
+    /// its inverse depth variance; other frames only mark their matched landmarks as seen.
     fn update_map(&mut self, features: &mut [RefFeature], frame: &PreparedFrame) {
         let index = frame.index;
         let lm = &self.config.local_map;
@@ -391,38 +396,34 @@ impl Odometry {
         } else {
             let bf = frame.stereo_camera(&self.config).bf;
             let noise = &self.config.motion.noise;
-            let observation = |f: &RefFeature| Observation {
-                world: self.world_from_camera * f.point,
-                weight: noise.depth_sigma_m(f.point.z, bf).powi(-2),
-                descriptor: f.descriptor,
-                frame: index,
+            let seen: Vec<Seen> = features
+                .iter()
+                .map(|f| Seen {
+                    observation: Observation {
+                        world: self.world_from_camera * f.point,
+                        weight: noise.depth_sigma_m(f.point.z, bf).powi(-2),
+                        descriptor: f.descriptor,
+                        frame: index,
+                    },
+                    pixel: f.pixel,
+                    landmark: f.landmark,
+                })
+                .collect();
+            let merge = MergeConfig {
+                radius_px: lm.merge_radius_px,
+                max_distance: self.config.matching.max_distance,
             };
-            let observations: Vec<Observation> = features.iter().map(observation).collect();
-            let projected = self
-                .map
-                .project(&self.world_from_camera.inverse(), &frame.camera);
-            let grid = PixelGrid::new(
-                projected.iter().enumerate().map(|(i, p)| (i, p.1)),
-                frame.camera.width,
-                frame.camera.height,
-                lm.merge_radius_px,
+            let ids = self.map.add_keyframe(
+                &seen,
+                &self.world_from_camera.inverse(),
+                &frame.camera,
+                &merge,
             );
-            for (f, o) in features.iter_mut().zip(&observations) {
-                f.landmark = f.landmark.filter(|&id| self.map.observe(id, o));
-            }
-            for (f, o) in features.iter_mut().zip(&observations) {
-                if f.landmark.is_none() {
-                    f.landmark = Some(self.map.merge_or_insert(
-                        o,
-                        f.pixel,
-                        &projected,
-                        &grid,
-                        lm.merge_radius_px,
-                        self.config.matching.max_distance,
-                    ));
-                }
+            for (f, id) in features.iter_mut().zip(ids) {
+                f.landmark = Some(id);
             }
         }
+        let lm = &self.config.local_map;
         self.map.prune(index, lm.window_frames, lm.max_landmarks);
     }
 }
