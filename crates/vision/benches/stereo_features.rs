@@ -58,7 +58,7 @@ fn stereo_features(c: &mut Criterion) {
         };
         c.bench_function(&format!("vision/stereo_{search:?}_3000_kitti"), |b| {
             cpu(b, || {
-                let pair = StereoPair::new(&left, &right).expect("same size");
+                let pair = StereoPair::new(left.clone(), right.clone()).expect("same size");
                 pair.match_points(&pts, &config).expect("valid config")
             })
         });

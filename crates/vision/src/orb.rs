@@ -340,9 +340,10 @@ fn describe(
     }
     let at = |o: isize| d.get(o as usize).copied().unwrap_or(0);
     let mut desc = [0u64; 4];
-    for (i, pair) in offsets.chunks_exact(2).enumerate() {
-        if at(pair[0]) < at(pair[1]) {
-            desc[i / 64] |= 1 << (i % 64);
+    for (word, tests) in desc.iter_mut().zip(offsets.chunks_exact(128)) {
+        // one bit per test without a branch (the comparisons are coin flips to a predictor)
+        for (bit, pair) in tests.chunks_exact(2).enumerate() {
+            *word |= u64::from(at(pair[0]) < at(pair[1])) << bit;
         }
     }
     desc

@@ -257,11 +257,12 @@ impl CoarsePair {
     }
 }
 
-/// A rectified pair prepared for matching.
+/// A rectified pair prepared for matching; keep it to match more points of the same pair (the
+/// preparation, integral images and the coarse pair, is done once).
 #[derive(Debug, Clone)]
-pub struct StereoPair<'a> {
-    left: &'a GrayImage,
-    right_image: &'a GrayImage,
+pub struct StereoPair {
+    left: GrayImage,
+    right_image: GrayImage,
     right: RightImage,
     /// Built on the first coarse-to-fine search.
     coarse: OnceCell<CoarsePair>,
@@ -278,12 +279,12 @@ struct Scratch {
     peaks: Vec<(usize, f32)>,
 }
 
-impl<'a> StereoPair<'a> {
+impl StereoPair {
     /// Prepares `left`/`right` (rectified, same size) for matching.
     ///
     /// # Errors
     /// [`VisionError::SizeMismatch`] when the images differ in size.
-    pub fn new(left: &'a GrayImage, right: &'a GrayImage) -> Result<Self, VisionError> {
+    pub fn new(left: GrayImage, right: GrayImage) -> Result<Self, VisionError> {
         if (left.width(), left.height()) != (right.width(), right.height()) {
             return Err(VisionError::SizeMismatch {
                 a_width: left.width(),
@@ -294,8 +295,8 @@ impl<'a> StereoPair<'a> {
         }
         Ok(Self {
             left,
+            right: RightImage::new(&right),
             right_image: right,
-            right: RightImage::new(right),
             coarse: OnceCell::new(),
         })
     }
@@ -350,7 +351,14 @@ impl<'a> StereoPair<'a> {
             return None;
         }
         let (xi, yi) = (xi as usize, yi as usize);
-        left_patch(self.left, xi, yi, r, &mut scratch.patch, config.min_texture)?;
+        left_patch(
+            &self.left,
+            xi,
+            yi,
+            r,
+            &mut scratch.patch,
+            config.min_texture,
+        )?;
         // candidate right column xr = xi − d must keep its window inside: xr ≥ r
         let d_max = config.max_disparity_px.min(xi - r);
         if d_max < config.min_disparity_px {
@@ -382,7 +390,7 @@ impl<'a> StereoPair<'a> {
     ) -> bool {
         let coarse = self
             .coarse
-            .get_or_init(|| CoarsePair::new(self.left, self.right_image));
+            .get_or_init(|| CoarsePair::new(&self.left, &self.right_image));
         let rc = (config.half_window_px / 2).min(MAX_COARSE_HALF_WINDOW);
         let (xc, yc) = (xi / 2, yi / 2);
         if rc == 0
@@ -657,7 +665,7 @@ mod tests {
     fn recovers_sub_pixel_disparity() {
         for truth in [7.0f32, 12.25, 20.5] {
             let (l, r) = pair(truth);
-            let pairing = StereoPair::new(&l, &r).unwrap();
+            let pairing = StereoPair::new(l.clone(), r.clone()).unwrap();
             // sub-pixel positions: the disparity must not follow the rounding of x
             let pts: Vec<(f32, f32)> = (0..10)
                 .map(|i| (60.4 + 8.0 * i as f32 - 0.1 * i as f32, 30.0))
@@ -689,7 +697,7 @@ mod tests {
         };
         for truth in [3.0f32, 7.0, 12.25, 20.5, 33.0, 45.75, 61.5] {
             let (l, r) = pair(truth);
-            let pairing = StereoPair::new(&l, &r).unwrap();
+            let pairing = StereoPair::new(l.clone(), r.clone()).unwrap();
             let pts: Vec<(f32, f32)> = (0..40)
                 .map(|i| (75.0 + 2.1 * i as f32, 10.0 + i as f32))
                 .collect();
@@ -717,7 +725,7 @@ mod tests {
     #[test]
     fn zncc_matches_the_definition() {
         let (l, r) = pair(9.5);
-        let pairing = StereoPair::new(&l, &r).unwrap();
+        let pairing = StereoPair::new(l.clone(), r.clone()).unwrap();
         let rad = 9;
         let mut patch = Patch::with_side(2 * rad + 1);
         let window = |img: &GrayImage, x: usize, y: usize| -> Vec<f64> {
@@ -742,7 +750,7 @@ mod tests {
     #[test]
     fn flat_and_repetitive_windows_get_no_disparity() {
         let flat = GrayImage::filled(80, 40, 100u8);
-        let pairing = StereoPair::new(&flat, &flat).unwrap();
+        let pairing = StereoPair::new(flat.clone(), flat.clone()).unwrap();
         let got = pairing
             .match_points(&[(40.0, 20.0)], &StereoConfig::default())
             .unwrap();
@@ -756,7 +764,7 @@ mod tests {
                 .collect(),
         )
         .unwrap();
-        let pairing = StereoPair::new(&stripes, &stripes).unwrap();
+        let pairing = StereoPair::new(stripes.clone(), stripes.clone()).unwrap();
         let got = pairing
             .match_points(&[(60.0, 20.0)], &StereoConfig::default())
             .unwrap();
@@ -767,8 +775,8 @@ mod tests {
     fn bad_input_is_an_error_or_none() {
         let a = GrayImage::filled(80, 40, 0u8);
         let b = GrayImage::filled(81, 40, 0u8);
-        assert!(StereoPair::new(&a, &b).is_err());
-        let pairing = StereoPair::new(&a, &a).unwrap();
+        assert!(StereoPair::new(a.clone(), b.clone()).is_err());
+        let pairing = StereoPair::new(a.clone(), a.clone()).unwrap();
         let bad = StereoConfig {
             min_disparity_px: 10,
             max_disparity_px: 5,

@@ -64,7 +64,7 @@ fn coarse_to_fine_agrees_with_exhaustive_on_kitti() {
                 .iter()
                 .map(|c| (c.x, c.y)),
         );
-        let pair = StereoPair::new(&left, &right).unwrap();
+        let pair = StereoPair::new(left.clone(), right.clone()).unwrap();
         let a = pair.match_points(&points, &fine).unwrap();
         let b = pair.match_points(&points, &exhaustive).unwrap();
         for (a, b) in a.iter().zip(&b) {

@@ -61,8 +61,8 @@ pub enum Rig {
 enum DepthSource {
     /// Depth \[m\] registered to the tracked image.
     Image(Image<f32>),
-    /// The right image of a rectified pair.
-    Right(GrayImage),
+    /// A rectified pair, prepared once for all the points matched in it.
+    Right(Box<StereoPair>),
 }
 
 /// Detected features of a frame.
@@ -168,7 +168,9 @@ impl Preprocessor {
                     Some(c) => c.apply_gray(&left),
                     None => left,
                 };
-                (left, DepthSource::Right(right), None)
+                let pair =
+                    StereoPair::new(left.clone(), right).map_err(|_| FailReason::SizeMismatch)?;
+                (left, DepthSource::Right(Box::new(pair)), None)
             }
         };
         if (gray.width(), gray.height()) != (camera.width, camera.height) {
@@ -272,9 +274,7 @@ impl PreparedFrame {
                 .iter()
                 .map(|&px| depth_at(depth, px, &config.depth).map(|z| lift(k, px, z)))
                 .collect()),
-            DepthSource::Right(right) => {
-                let pair = StereoPair::new(&self.gray, right)
-                    .map_err(|e| FailReason::Kernel(e.to_string()))?;
+            DepthSource::Right(pair) => {
                 let pts: Vec<(f32, f32)> =
                     pixels.iter().map(|p| (p.x as f32, p.y as f32)).collect();
                 let matches = pair
