@@ -5,8 +5,11 @@
 //!
 //! In real-time mode the reader plays the dataset at its own clock (frame time stamps) and
 //! offers each frame to the pipeline without waiting: a frame arriving while the prepare stage
-//! is still busy with the previous one is dropped and counted, as a live camera driver would.
-//! Otherwise every frame is processed.
+//! still has [`REALTIME_QUEUE`] frames waiting is dropped and counted, as a live camera driver
+//! with a ring of that many buffers would; and the tracker hands a pose and its points to the
+//! point map without waiting either, so a slow map update (a hash table growing) skips that
+//! frame's points instead of holding tracking back. Otherwise every frame is processed and
+//! mapped.
 //!
 //! Per-frame time (`frame` in the timings) is the prepare and track work of one frame, image
 //! decoding excluded; each stage's own time is recorded under its name. Prepare and track times
@@ -28,6 +31,10 @@ use crate::frame::{ColoredPoints, PreparedFrame, Preprocessor, Rig, SensorImages
 use crate::odometry::{FailReason, FrameStatus, Odometry};
 use crate::voxel_map::VoxelMap;
 
+/// Decoded frames the real-time reader may queue ahead of the prepare stage (a camera driver's
+/// buffer ring; V4L2 drivers commonly keep four).
+pub const REALTIME_QUEUE: usize = 4;
+
 /// How the dataset is played.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct RunOptions {
@@ -44,6 +51,9 @@ pub struct RunStats {
     pub read: usize,
     /// Frames dropped in real-time mode because the pipeline was busy.
     pub dropped: usize,
+    /// Frames tracked but left out of the point map in real-time mode because the mapper was
+    /// busy.
+    pub unmapped: usize,
     /// Frames tracked or used to (re)start tracking.
     pub processed: usize,
     /// Frames that failed (unreadable, too dark, no depth, no motion).
@@ -101,7 +111,7 @@ struct Tracked {
 }
 
 /// Runs visual odometry over `dataset`; `progress` is called once per frame that reaches the
-/// mapper.
+/// tracker.
 ///
 /// # Errors
 /// [`VoError`] for an invalid configuration or an empty dataset; bad frames are counted, not
@@ -128,25 +138,27 @@ pub fn run(
         .and_then(|gt| gt.poses.first())
         .map_or(Pose3::identity(), |p| p.pose);
     let mut odometry = Odometry::new(config, first * camera_from_tracked);
-    let (tx_decoded, rx_decoded) = bounded::<Decoded>(1);
+    let queue = if options.realtime { REALTIME_QUEUE } else { 1 };
+    let (tx_decoded, rx_decoded) = bounded::<Decoded>(queue);
     let (tx_prepared, rx_prepared) = bounded::<Prepared>(2);
     let (tx_tracked, rx_tracked) = bounded::<Tracked>(4);
     let mut map = VoxelMap::new(config.voxel_map.clone());
     std::thread::scope(|s| {
         let reader = s.spawn(move || read_stage(dataset, options, &tx_decoded));
         let preparer = s.spawn(move || prepare_stage(&mut pre, &rx_decoded, &tx_prepared));
-        let mapper = s.spawn(|| map_stage(&mut map, &rx_tracked, &progress));
+        let mapper = s.spawn(|| map_stage(&mut map, &rx_tracked));
         let tracked = track_stage(
             &mut odometry,
-            &rx_prepared,
-            &tx_tracked,
+            (&rx_prepared, &tx_tracked),
             camera_from_tracked,
+            options,
+            &progress,
         );
         drop(tx_tracked);
-        let (read, dropped) = reader.join().unwrap_or((0, 0));
-        let mut timings = preparer.join().unwrap_or_default();
+        let (read, dropped, mut timings) = reader.join().unwrap_or_default();
+        timings.merge(&preparer.join().unwrap_or_default());
         timings.merge(&mapper.join().unwrap_or_default());
-        let (trajectory, frames, track_timings) = tracked;
+        let (trajectory, frames, track_timings, unmapped) = tracked;
         timings.merge(&track_timings);
         let failed = frames
             .iter()
@@ -160,6 +172,7 @@ pub fn run(
             frames: dataset.len(),
             read,
             dropped,
+            unmapped,
             processed: frames.len() - failed,
             failed,
             initialisations,
@@ -218,15 +231,22 @@ fn load(dataset: &Dataset, index: usize) -> Option<(f64, Result<SensorImages, St
     Some((timestamp, images.map_err(|e| e.to_string())))
 }
 
-/// Reads every frame; returns (frames handed on, frames dropped).
-fn read_stage(dataset: &Dataset, options: RunOptions, tx: &Sender<Decoded>) -> (usize, usize) {
+/// Reads every frame; returns (frames handed on, frames dropped, decoding times).
+fn read_stage(
+    dataset: &Dataset,
+    options: RunOptions,
+    tx: &Sender<Decoded>,
+) -> (usize, usize, StageTimings) {
     let start = Instant::now();
     let t0 = dataset.timestamps().first().copied().unwrap_or(0.0);
     let (mut read, mut dropped) = (0, 0);
+    let mut timings = StageTimings::default();
     for index in 0..dataset.len() {
+        let decode_start = ThreadTime::now();
         let Some((timestamp, images)) = load(dataset, index) else {
             break;
         };
+        timings.record("decode", decode_start.elapsed().as_secs_f64() * 1e3);
         let msg = Decoded {
             index,
             timestamp,
@@ -248,7 +268,7 @@ fn read_stage(dataset: &Dataset, options: RunOptions, tx: &Sender<Decoded>) -> (
             break;
         }
     }
-    (read, dropped)
+    (read, dropped, timings)
 }
 
 fn prepare_stage(
@@ -280,13 +300,17 @@ fn prepare_stage(
     timings
 }
 
+/// Tracks the prepared frames; returns the trajectory, the frame records, the timings and the
+/// number of frames left out of the map.
 fn track_stage(
     odometry: &mut Odometry,
-    rx: &Receiver<Prepared>,
-    tx: &Sender<Tracked>,
+    (rx, tx): (&Receiver<Prepared>, &Sender<Tracked>),
     camera_from_tracked: Pose3,
-) -> (Trajectory, Vec<FrameRecord>, StageTimings) {
+    options: RunOptions,
+    progress: &(impl Fn() + Send + Sync),
+) -> (Trajectory, Vec<FrameRecord>, StageTimings, usize) {
     let mut timings = StageTimings::default();
+    let mut unmapped = 0;
     let mut trajectory = Trajectory::new();
     let mut frames = Vec::new();
     let tracked_from_camera = camera_from_tracked.inverse();
@@ -311,30 +335,35 @@ fn track_stage(
             timestamp: p.timestamp,
             status,
         });
-        if tx
-            .send(Tracked {
-                world_from_camera: world_from_tracked,
-                points,
-            })
-            .is_err()
-        {
+        progress();
+        let msg = Tracked {
+            world_from_camera: world_from_tracked,
+            points,
+        };
+        let sent = if options.realtime {
+            match tx.try_send(msg) {
+                Err(TrySendError::Full(_)) => {
+                    unmapped += 1;
+                    Ok(())
+                }
+                other => other.map_err(|_| ()),
+            }
+        } else {
+            tx.send(msg).map_err(|_| ())
+        };
+        if sent.is_err() {
             break;
         }
     }
-    (trajectory, frames, timings)
+    (trajectory, frames, timings, unmapped)
 }
 
-fn map_stage(
-    map: &mut VoxelMap,
-    rx: &Receiver<Tracked>,
-    progress: &(impl Fn() + Send + Sync),
-) -> StageTimings {
+fn map_stage(map: &mut VoxelMap, rx: &Receiver<Tracked>) -> StageTimings {
     let mut timings = StageTimings::default();
     for t in rx {
         if let Some((points, colors)) = &t.points {
             timings.time("map", || map.insert(&t.world_from_camera, points, colors));
         }
-        progress();
     }
     timings
 }
