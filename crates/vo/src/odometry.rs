@@ -13,11 +13,11 @@ use serde::Serialize;
 use slamkit_core::Pose3;
 use slamkit_vision::klt::track;
 use slamkit_vision::matching::match_descriptors_within;
-use slamkit_vision::{match_descriptors, Descriptor, KltPyramid};
+use slamkit_vision::{Descriptor, KltPyramid};
 
 use crate::config::{FrontendKind, TrackingMode, VoConfig};
 use crate::frame::PreparedFrame;
-use crate::local_map::{LocalMap, MergeConfig, Observation, Seen};
+use crate::local_map::{project, LocalMap, MergeConfig, Observation, Seen};
 use crate::motion::{estimate_motion, Correspondence, MotionFailure};
 
 /// A reference feature matched in the current frame: the descriptor to refresh it with, its
@@ -222,7 +222,7 @@ impl Odometry {
         let matched: Vec<Match> = match self.config.frontend {
             FrontendKind::Klt => self.klt_matches(reference, frame)?,
             FrontendKind::Orb if use_map => self.map_matches(frame, &ref_from_world)?,
-            FrontendKind::Orb => orb_matches(&reference.features, frame, &self.config),
+            FrontendKind::Orb => self.orb_matches(reference, frame)?,
         };
         Ok(matched
             .into_iter()
@@ -276,6 +276,60 @@ impl Odometry {
             .saturating_sub(self.last_index.unwrap_or(index))
             .max(1);
         (0..steps).fold(self.world_from_camera, |pose, _| pose * self.velocity)
+    }
+
+    /// ORB frame to frame: the frame's descriptors matched against the reference's whose point
+    /// projects, in the constant-velocity prediction of this frame's pose, near the feature (the
+    /// search widened once when too few match, as with the local map); the frame's points were
+    /// lifted when it was prepared.
+    fn orb_matches(
+        &self,
+        reference: &Reference,
+        frame: &PreparedFrame,
+    ) -> Result<Vec<Match>, FailReason> {
+        let lm = &self.config.local_map;
+        let f = &frame.features;
+        let camera_from_ref =
+            self.predicted_pose(frame.index).inverse() * reference.world_from_camera;
+        let with_descriptor: Vec<&RefFeature> = reference
+            .features
+            .iter()
+            .filter(|r| r.descriptor.is_some())
+            .collect();
+        let train: Vec<Descriptor> = with_descriptor
+            .iter()
+            .filter_map(|r| r.descriptor)
+            .collect();
+        let train_px: Vec<[f32; 2]> = with_descriptor
+            .iter()
+            .map(|r| project(&frame.camera, &(camera_from_ref * r.point)).unwrap_or([f32::NAN; 2]))
+            .collect();
+        let query_px: Vec<[f32; 2]> = f.pixels.iter().map(|p| [p.x as f32, p.y as f32]).collect();
+        let search = |r: f64| {
+            match_descriptors_within(
+                (&f.descriptors, &query_px),
+                (&train, &train_px),
+                r as f32,
+                &self.config.matching,
+            )
+            .map_err(|e| FailReason::Kernel(e.to_string()))
+        };
+        let mut matches = search(lm.search_radius_px)?;
+        if matches.len() < lm.min_window_matches {
+            matches = search(lm.recovery_radius_px)?;
+        }
+        Ok(matches
+            .into_iter()
+            .filter_map(|m| {
+                let r = (*with_descriptor.get(m.train_idx)?).clone();
+                Some((
+                    r,
+                    f.descriptors.get(m.query_idx).copied(),
+                    *f.pixels.get(m.query_idx)?,
+                    *f.points.get(m.query_idx)?,
+                ))
+            })
+            .collect())
     }
 
     /// ORB with the local map: the landmarks projected into the predicted pose, each matched
@@ -426,27 +480,4 @@ impl Odometry {
         let lm = &self.config.local_map;
         self.map.prune(index, lm.window_frames, lm.max_landmarks);
     }
-}
-
-/// ORB frame to frame: the frame's descriptors matched against the reference's; the frame's
-/// points were lifted when it was prepared.
-fn orb_matches(reference: &[RefFeature], frame: &PreparedFrame, config: &VoConfig) -> Vec<Match> {
-    let train: Vec<Descriptor> = reference.iter().filter_map(|f| f.descriptor).collect();
-    let with_descriptor: Vec<&RefFeature> = reference
-        .iter()
-        .filter(|f| f.descriptor.is_some())
-        .collect();
-    let f = &frame.features;
-    match_descriptors(&f.descriptors, &train, &config.matching)
-        .into_iter()
-        .filter_map(|m| {
-            let r = (*with_descriptor.get(m.train_idx)?).clone();
-            Some((
-                r,
-                f.descriptors.get(m.query_idx).copied(),
-                *f.pixels.get(m.query_idx)?,
-                *f.points.get(m.query_idx)?,
-            ))
-        })
-        .collect()
 }
