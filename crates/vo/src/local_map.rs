@@ -6,8 +6,16 @@
 //! new frame is measured against steadier points and drift slows; a feature that was missed
 //! in a bad frame is still in the map for the next one, so tracking recovers. This is the
 //! local map of keyframe-based VO (PTAM, Klein & Murray, ISMAR 2007; ORB-SLAM's local map,
-//! Mur-Artal et al., T-RO 2015) without its bundle adjustment: positions are plain means, as
-//! the seed's MRPT-based VO kept them.
+//! Mur-Artal et al., T-RO 2015) without its bundle adjustment: positions are means, weighted
+//! by the inverse variance of each observation's depth (stereo and Kinect depth noise grow
+//! with z², so a point first seen far away must not pull its later close-range observations).
+//!
+//! With ORB, landmarks are matched only near their projection into the predicted pose (as
+//! ORB-SLAM's "search by projection"): matching against the whole map drowned each query in
+//! thousands of unrelated descriptors, so Lowe's ratio test rejected nearly everything
+//! (BENCHMARKS.md). A key frame's unmatched feature that projects next to a landmark with a
+//! close descriptor merges into it ([`LocalMap::add_keyframe`]), so a point missed once does
+//! not come back as a duplicate; the map is capped.
 
 use std::collections::HashMap;
 
