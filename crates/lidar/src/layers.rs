@@ -13,8 +13,9 @@
 //!   matched: the tilted scan plane cuts the room at other heights; the pose follows the
 //!   motion prior;
 //! * the motion prior is the drone's recent velocity, carried through take-offs and stops by
-//!   the acceleration its tilt shows, turning as the IMU's yaw-rate gyro does when there is one
-//!   ([`velocity`]), or the scans' odometry if asked;
+//!   the acceleration its tilt shows, pulled towards a downward optical-flow sensor's velocity
+//!   and turning as the IMU's yaw-rate gyro does when there are those ([`velocity`]), or the
+//!   scans' odometry if asked;
 //! * on a layer change the scan is first aligned by ICP to the map of the layer the drone comes
 //!   from, so that a new map starts where the old one ends and an old one is re-entered from
 //!   where the drone is (an addition to the seed method, which started new layers from the

@@ -7,7 +7,8 @@
 //! * [`motion`]: a drone flying waypoints `x y z yaw` (tilting as it accelerates) and a
 //!   differential-drive robot; ground truth `world_from_base` at any time.
 //! * Sensors with seeded noise: [`lidar`] (planar, tilting with the robot), [`range_finder`]
-//!   (up and down), [`odometry`] (drifting), [`attitude`] (roll, pitch, gyro heading), [`flow`] (optical-flow velocity),
+//!   (up and down), [`odometry`] (drifting), [`attitude`] (roll, pitch, gyro heading),
+//!   [`flow`] (downward optical-flow velocity),
 //!   [`camera`] (RGB-D: colour and Kinect-like depth) and [`stereo`] (a rectified grey pair),
 //!   both ray-cast per pixel: [`Simulation::rgbd_frame`], [`Simulation::stereo_frame`].
 //! * [`relations`]: pairs of scans for benchmark relations files.

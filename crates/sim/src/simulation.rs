@@ -422,6 +422,9 @@ mod tests {
         assert_ne!(a.scans[0].ranges_m, c.scans[0].ranges_m);
         assert_eq!(a.ground_truth, c.ground_truth);
         assert_eq!(a.scans.len(), a.ground_truth.len());
+        // one flow reading per period after the first instant, each with its own noise
+        assert_eq!(a.flows.len() + 1, sim(5).sample_times(10.0).len());
+        assert_ne!(a.flows, c.flows);
         // odometry drifts away from the truth, but not wildly
         let last = a.scans.last().unwrap().odometry.unwrap();
         let truth = pose3_to_pose2(&a.ground_truth.poses.last().unwrap().pose);

@@ -3,11 +3,12 @@
 //! Simulates a flight through a built-in world (seeded, so every run gives the same data) and
 //! runs layered ICP-SLAM on it ([`slamkit_lidar::layers`]: one 2D map per 5 cm height layer,
 //! the layer tracked by the up and down range finders, scans ignored while the drone tilts,
-//! each scan predicted from the drone's recent velocity and its tilt, matches kept only along
-//! the directions the scan constrains), and particle-filter SLAM ([`slamkit_lidar::rbpf`]) on
-//! the same scans in a single 2D map, its height taken from the layered tracker. Neither uses
-//! the drone's simulated optical-flow odometry: its per-scan yaw error exceeds 0.19 rad on 5 %
-//! of the `large` flight's scans. The particle filter takes its motion from the layered
+//! each scan predicted from the drone's recent velocity, its tilt, its yaw-rate gyro and its
+//! downward optical-flow velocity sensor ([`slamkit_sim::flow`]), matches kept only along the
+//! directions the scan constrains), and particle-filter SLAM ([`slamkit_lidar::rbpf`]) on the
+//! same scans in a single 2D map, its height taken from the layered tracker. Neither uses the
+//! scans' rotate–translate–rotate odometry: its per-scan yaw error exceeds 0.19 rad on 5 % of
+//! the `large` flight's scans. The particle filter takes its motion from the layered
 //! matcher's pose increments, as MRPT's ICP-based RBPF takes scan-matching odometry, and keeps
 //! its own maps and scan matching (`large`, seeds 1–4: PF mean error 0.20–2.2 m with the
 //! drone's odometry, 0.08–0.84 m with scan-to-scan ICP, 0.04–0.08 m with the layered
