@@ -9,7 +9,10 @@ use slamkit_vision::{
 use crate::depth::{DepthConfig, DepthRegistration};
 use crate::error::VoError;
 use crate::local_map::LocalMapConfig;
-use crate::motion::MotionConfig;
+use crate::motion::{MeasurementNoise, MotionConfig};
+
+/// Disparity noise of the sub-pixel ZNCC stereo matcher \[px\], for the motion weights.
+const STEREO_DISPARITY_SIGMA_PX: f64 = 0.5;
 use crate::voxel_map::VoxelMapConfig;
 
 /// Which features are tracked.
@@ -119,6 +122,7 @@ impl VoConfig {
             mode: TrackingMode::FrameToFrame,
             ..Self::default()
         };
+        config.motion.noise = MeasurementNoise::stereo(STEREO_DISPARITY_SIGMA_PX);
         match frontend {
             FrontendKind::Orb => {
                 config.orb.n_features = 3000;

@@ -15,6 +15,10 @@
 //!    current points into the reference — so the depth noise of neither frame is taken as
 //!    exact (the symmetric transfer error of Hartley & Zisserman 2004, §4.2.2); on a left
 //!    perturbation `T ← exp(δ) T` of SE(3) (Barfoot, *State Estimation for Robotics*, §7.1).
+//!    Each residual `(u, v, bf/z)` is whitened by its covariance: the moved point's depth noise
+//!    (σ_z growing with z², [`MeasurementNoise`]) propagated through the motion and the
+//!    projection, plus the observation's pixel and disparity noise — so a far point's
+//!    uncertain depth is trusted less while its well-measured pixel still counts.
 //!
 //! Too few inliers (fewer than `min_inliers`, or below `min_inlier_ratio` of the
 //! correspondences) is a failed motion: the caller keeps its pose and its reference features.
@@ -49,6 +53,112 @@ pub struct MotionConfig {
     pub min_inliers: usize,
     /// Smallest accepted inlier fraction of the correspondences, in \[0, 1\].
     pub min_inlier_ratio: f64,
+    /// Weight each refinement residual by its covariance from [`MotionConfig::noise`] (false:
+    /// every residual component counts alike).
+    pub weight_by_noise: bool,
+    /// Noise of the pixels and depths, for the weights.
+    pub noise: MeasurementNoise,
+}
+
+/// Noise of a feature's pixel and depth.
+///
+/// The depth noise of a structured-light RGB-D camera grows with the square of depth; for a
+/// Kinect v1, Nguyen, Izadi and Lovell ("Modeling Kinect Sensor Noise for Improved 3D
+/// Reconstruction and Tracking", 3DIMPVT 2012, eq. 6) measured
+/// `σ_z = 0.0012 + 0.0019 (z − 0.4)²` \[m\] (the defaults). A stereo camera has a constant
+/// disparity noise `σ_d`, so `σ_z = z² σ_d / bf`. Both terms are added in quadrature.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct MeasurementNoise {
+    /// Standard deviation of a feature's position in the image \[px\].
+    pub pixel_sigma_px: f64,
+    /// Axial depth noise: constant term \[m\].
+    pub depth_sigma_base_m: f64,
+    /// Axial depth noise: coefficient of `(z − depth_sigma_offset_m)²` \[1/m\].
+    pub depth_sigma_quadratic_per_m: f64,
+    /// Axial depth noise: depth at which the quadratic term vanishes \[m\].
+    pub depth_sigma_offset_m: f64,
+    /// Standard deviation of a stereo disparity \[px\] (0 for an RGB-D camera).
+    pub disparity_sigma_px: f64,
+}
+
+impl Default for MeasurementNoise {
+    fn default() -> Self {
+        Self {
+            pixel_sigma_px: 0.5,
+            depth_sigma_base_m: 0.0012,
+            depth_sigma_quadratic_per_m: 0.0019,
+            depth_sigma_offset_m: 0.4,
+            disparity_sigma_px: 0.0,
+        }
+    }
+}
+
+impl MeasurementNoise {
+    /// The noise of a rectified stereo pair: disparity noise `disparity_sigma_px`, no axial
+    /// term.
+    pub fn stereo(disparity_sigma_px: f64) -> Self {
+        Self {
+            depth_sigma_base_m: 0.0,
+            depth_sigma_quadratic_per_m: 0.0,
+            depth_sigma_offset_m: 0.0,
+            disparity_sigma_px,
+            ..Self::default()
+        }
+    }
+
+    /// Standard deviation of a depth `z_m` \[m\] measured by a camera with focal length ×
+    /// baseline `bf` \[px·m\].
+    pub fn depth_sigma_m(&self, z_m: f64, bf: f64) -> f64 {
+        let axial = self.depth_sigma_base_m
+            + self.depth_sigma_quadratic_per_m * (z_m - self.depth_sigma_offset_m).powi(2);
+        let stereo = if bf > 0.0 {
+            z_m * z_m * self.disparity_sigma_px / bf
+        } else {
+            0.0
+        };
+        axial.hypot(stereo)
+    }
+
+    fn validate(&self) -> Result<(), VoError> {
+        if !(self.pixel_sigma_px > 0.0 && self.pixel_sigma_px.is_finite()) {
+            return Err(VoError::config(
+                "noise.pixel_sigma_px",
+                self.pixel_sigma_px,
+                "must be > 0",
+            ));
+        }
+        let fields = [
+            ("noise.depth_sigma_base_m", self.depth_sigma_base_m),
+            (
+                "noise.depth_sigma_quadratic_per_m",
+                self.depth_sigma_quadratic_per_m,
+            ),
+            ("noise.disparity_sigma_px", self.disparity_sigma_px),
+        ];
+        for (name, v) in fields {
+            if !(v >= 0.0 && v.is_finite()) {
+                return Err(VoError::config(name, v, "must be finite and >= 0"));
+            }
+        }
+        if self.depth_sigma_base_m + self.depth_sigma_quadratic_per_m + self.disparity_sigma_px
+            <= 0.0
+        {
+            return Err(VoError::config(
+                "noise.depth_sigma_base_m",
+                self.depth_sigma_base_m,
+                "some depth noise must be > 0",
+            ));
+        }
+        if !self.depth_sigma_offset_m.is_finite() {
+            return Err(VoError::config(
+                "noise.depth_sigma_offset_m",
+                self.depth_sigma_offset_m,
+                "must be finite",
+            ));
+        }
+        Ok(())
+    }
 }
 
 impl Default for MotionConfig {
@@ -62,6 +172,8 @@ impl Default for MotionConfig {
             huber_px: 1.0,
             min_inliers: 5,
             min_inlier_ratio: 0.2,
+            weight_by_noise: true,
+            noise: MeasurementNoise::default(),
         }
     }
 }
@@ -106,7 +218,7 @@ impl MotionConfig {
                 "must be in [0, 1]",
             ));
         }
-        Ok(())
+        self.noise.validate()
     }
 }
 
@@ -291,11 +403,11 @@ pub struct StereoCamera {
     pub bf: f64,
 }
 
-/// One stereo observation residual (left u, v and right u, \[px\]) and its Jacobian with
-/// respect to a left perturbation δ = (ω, v) of the motion.
+/// One observation residual (u, v and disparity `bf/z`, \[px\]) and its Jacobian with respect
+/// to a left perturbation δ = (ω, v) of the motion.
 type Residual = (Vector3<f64>, Matrix3x6<f64>);
 
-/// Stereo projection `(u, v, u − bf/z)` of camera-frame `q` and its Jacobian `∂/∂q`; `None`
+/// Stereo projection `(u, v, bf/z)` of camera-frame `q` and its Jacobian `∂/∂q`; `None`
 /// behind the camera.
 fn project(cam: &StereoCamera, q: &Point3<f64>) -> Option<(Vector3<f64>, Matrix3<f64>)> {
     if q.z.is_nan() || q.z <= 1e-6 {
@@ -303,14 +415,13 @@ fn project(cam: &StereoCamera, q: &Point3<f64>) -> Option<(Vector3<f64>, Matrix3
     }
     let k = &cam.k;
     let iz = 1.0 / q.z;
-    let u = k.fx * q.x * iz + k.cx;
-    let p = Vector3::new(u, k.fy * q.y * iz + k.cy, u - cam.bf * iz);
-    let du = Vector3::new(k.fx * iz, 0.0, -k.fx * q.x * iz * iz);
-    let j = Matrix3::from_rows(&[
-        du.transpose(),
-        Vector3::new(0.0, k.fy * iz, -k.fy * q.y * iz * iz).transpose(),
-        (du + Vector3::new(0.0, 0.0, cam.bf * iz * iz)).transpose(),
-    ]);
+    let p = Vector3::new(k.fx * q.x * iz + k.cx, k.fy * q.y * iz + k.cy, cam.bf * iz);
+    #[rustfmt::skip]
+    let j = Matrix3::new(
+        k.fx * iz, 0.0, -k.fx * q.x * iz * iz,
+        0.0, k.fy * iz, -k.fy * q.y * iz * iz,
+        0.0, 0.0, -cam.bf * iz * iz,
+    );
     p.iter().all(|v| v.is_finite()).then_some((p, j))
 }
 
@@ -329,10 +440,8 @@ fn symmetric_residuals(
     let q = t * c.reference;
     let (pred, jq) = project(cam, &q)?;
     let (mut obs, _) = project(cam, &c.current)?;
-    let disparity = obs.x - obs.z;
     obs.x = c.current_px.x;
     obs.y = c.current_px.y;
-    obs.z = c.current_px.x - disparity;
     let mut fwd = Matrix3x6::zeros();
     fwd.fixed_view_mut::<3, 3>(0, 0)
         .copy_from(&(-jq * q.coords.cross_matrix()));
@@ -345,18 +454,145 @@ fn symmetric_residuals(
     bwd.fixed_view_mut::<3, 3>(0, 0)
         .copy_from(&(jb * rt * c.current.coords.cross_matrix()));
     bwd.fixed_view_mut::<3, 3>(0, 3).copy_from(&(-jb * rt));
-    let mut out = [(pred - obs, fwd), (pred_back - obs_back, bwd)];
+    Some([(pred - obs, fwd), (pred_back - obs_back, bwd)])
+}
+
+/// Covariance \[px²\] of the observation `(u, v, bf/z)` of camera-frame point `p`: the pixel
+/// noise in u and v, the depth noise turned into disparity, `σ_d = bf σ_z / z²`.
+fn observation_covariance(
+    cam: &StereoCamera,
+    noise: &MeasurementNoise,
+    p: &Point3<f64>,
+) -> Matrix3<f64> {
+    let s2 = noise.pixel_sigma_px.powi(2);
+    let sd = cam.bf * noise.depth_sigma_m(p.z, cam.bf) / (p.z * p.z);
+    Matrix3::from_diagonal(&Vector3::new(s2, s2, sd * sd))
+}
+
+/// Covariance \[m²\] of a point lifted from a pixel and a depth: the depth noise along its
+/// viewing ray (the whole point scales with z), the pixel noise across it.
+fn point_covariance(cam: &StereoCamera, noise: &MeasurementNoise, p: &Point3<f64>) -> Matrix3<f64> {
+    let ray = p.coords / p.z;
+    let sz = noise.depth_sigma_m(p.z, cam.bf);
+    let lateral = noise.pixel_sigma_px * p.z;
+    let across = Vector3::new(
+        (lateral / cam.k.fx).powi(2),
+        (lateral / cam.k.fy).powi(2),
+        0.0,
+    );
+    Matrix3::from_diagonal(&across) + ray * ray.transpose() * (sz * sz)
+}
+
+/// The matrix `σ_px L⁻¹` (`C = L Lᵀ` the covariance of `π(t · from) − obs(to)`) that turns
+/// that residual into pixels of a feature with only pixel noise: the noise of `from`
+/// propagated through the motion and the projection (Hartley & Zisserman 2004, §5.2), plus
+/// the observation noise of `to`. `None` when `from` lands behind the camera or `C` is
+/// singular.
+fn whitening(
+    cam: &StereoCamera,
+    noise: &MeasurementNoise,
+    t: &Pose3,
+    from: &Point3<f64>,
+    to: &Point3<f64>,
+) -> Option<Matrix3<f64>> {
+    let (_, j) = project(cam, &(t * from))?;
+    let r = t.rotation.to_rotation_matrix().into_inner();
+    let jr = j * r;
+    let mut c = jr * point_covariance(cam, noise, from) * jr.transpose()
+        + observation_covariance(cam, noise, to);
     if cam.bf == 0.0 {
-        for (r, j) in &mut out {
-            r.z = 0.0;
-            j.row_mut(2).fill(0.0);
+        // no disparity term: its residual and Jacobian row are zero, any variance will do
+        c[(2, 2)] = noise.pixel_sigma_px.powi(2);
+    }
+    let l_inv = c.cholesky()?.l().try_inverse()?;
+    Some(l_inv * noise.pixel_sigma_px)
+}
+
+/// The inliers' residuals with their whitening, fixed at the pose the refinement starts from
+/// so that the cost it minimises does not change under it.
+struct Problem<'a> {
+    cam: &'a StereoCamera,
+    huber_px: f64,
+    terms: Vec<(&'a Correspondence, [Matrix3<f64>; 2])>,
+}
+
+impl<'a> Problem<'a> {
+    fn new(
+        data: &'a [Correspondence],
+        inliers: &[usize],
+        cam: &'a StereoCamera,
+        start: &Pose3,
+        config: &MotionConfig,
+    ) -> Self {
+        let noise = &config.noise;
+        let start_inv = start.inverse();
+        let terms = inliers
+            .iter()
+            .filter_map(|&i| data.get(i))
+            .filter_map(|c| {
+                let w = if config.weight_by_noise {
+                    [
+                        whitening(cam, noise, start, &c.reference, &c.current)?,
+                        whitening(cam, noise, &start_inv, &c.current, &c.reference)?,
+                    ]
+                } else {
+                    [Matrix3::identity(); 2]
+                };
+                Some((c, w))
+            })
+            .collect();
+        Self {
+            cam,
+            huber_px: config.huber_px,
+            terms,
         }
     }
-    Some(out)
+
+    /// Whitened residuals of every term under `pose`.
+    fn residuals(&self, pose: &Pose3) -> impl Iterator<Item = Residual> + '_ {
+        let pose = *pose;
+        let pose_inv = pose.inverse();
+        self.terms.iter().flat_map(move |(c, w)| {
+            symmetric_residuals(self.cam, &pose, &pose_inv, c)
+                .into_iter()
+                .flat_map(move |res| {
+                    res.into_iter()
+                        .zip(w.iter())
+                        .map(|((r, j), w)| (w * r, w * j))
+                })
+        })
+    }
+
+    fn cost(&self, pose: &Pose3) -> f64 {
+        let delta = self.huber_px;
+        self.residuals(pose)
+            .map(|(r, _)| {
+                let e = r.norm();
+                if e <= delta {
+                    0.5 * e * e
+                } else {
+                    delta * (e - 0.5 * delta)
+                }
+            })
+            .sum()
+    }
+
+    /// The Gauss–Newton step with Huber weights at `pose`; `None` for a singular system.
+    fn step(&self, pose: &Pose3) -> Option<Vector6<f64>> {
+        let mut h = Matrix6::<f64>::zeros();
+        let mut g = Vector6::<f64>::zeros();
+        for (r, j) in self.residuals(pose) {
+            let w = huber_weight(r.norm(), self.huber_px);
+            h += w * j.transpose() * j;
+            g += w * j.transpose() * r;
+        }
+        h.cholesky().map(|ch| ch.solve(&(-g)))
+    }
 }
 
 /// Gauss–Newton with Huber weights on the symmetric stereo reprojection error of `inliers`
-/// (each correspondence measured in both frames); keeps `pose` when a step fails or does not
+/// (each correspondence measured in both frames), each residual weighted by its covariance
+/// when [`MotionConfig::weight_by_noise`] is set; keeps `pose` when a step fails or does not
 /// lower the cost.
 pub fn refine(
     data: &[Correspondence],
@@ -365,22 +601,10 @@ pub fn refine(
     mut pose: Pose3,
     config: &MotionConfig,
 ) -> Pose3 {
-    let mut cost = huber_cost(data, inliers, cam, &pose, config.huber_px);
+    let problem = Problem::new(data, inliers, cam, &pose, config);
+    let mut cost = problem.cost(&pose);
     for _ in 0..config.refine_iterations {
-        let mut h = Matrix6::<f64>::zeros();
-        let mut g = Vector6::<f64>::zeros();
-        let pose_inv = pose.inverse();
-        for c in inliers.iter().filter_map(|&i| data.get(i)) {
-            let Some(res) = symmetric_residuals(cam, &pose, &pose_inv, c) else {
-                continue;
-            };
-            for (r, j) in &res {
-                let w = huber_weight(r.norm(), config.huber_px);
-                h += w * j.transpose() * j;
-                g += w * j.transpose() * r;
-            }
-        }
-        let Some(delta) = h.cholesky().map(|ch| ch.solve(&(-g))) else {
+        let Some(delta) = problem.step(&pose) else {
             break;
         };
         let step = Pose3::from_parts(
@@ -388,7 +612,7 @@ pub fn refine(
             UnitQuaternion::from_scaled_axis(delta.fixed_rows::<3>(0).into_owned()),
         );
         let candidate = step * pose;
-        let new_cost = huber_cost(data, inliers, cam, &candidate, config.huber_px);
+        let new_cost = problem.cost(&candidate);
         if new_cost.is_nan() || new_cost >= cost {
             break;
         }
@@ -408,30 +632,6 @@ fn huber_weight(r: f64, delta: f64) -> f64 {
     } else {
         delta / r
     }
-}
-
-fn huber_cost(
-    data: &[Correspondence],
-    inliers: &[usize],
-    cam: &StereoCamera,
-    pose: &Pose3,
-    delta: f64,
-) -> f64 {
-    let pose_inv = pose.inverse();
-    inliers
-        .iter()
-        .filter_map(|&i| data.get(i))
-        .filter_map(|c| symmetric_residuals(cam, pose, &pose_inv, c))
-        .flatten()
-        .map(|(r, _)| {
-            let e = r.norm();
-            if e <= delta {
-                0.5 * e * e
-            } else {
-                delta * (e - 0.5 * delta)
-            }
-        })
-        .sum()
 }
 
 #[cfg(test)]
@@ -527,6 +727,77 @@ mod tests {
         assert!(after < before, "{after} vs {before}");
         let err = truth.inverse() * refined;
         assert!(err.translation.vector.norm() < 2e-3, "{err}");
+    }
+
+    /// Zero-mean noise of standard deviation `sigma` (uniform, so bounded).
+    fn noise(rng: &mut ChaCha8Rng, sigma: f64) -> f64 {
+        rng.gen_range(-1.0..1.0) * sigma * 3f64.sqrt()
+    }
+
+    /// `n` features 0.6–4.5 m in front of a Kinect, seen after `truth`, with the sensor's
+    /// noise in both frames: 0.3 px in the pixels, Nguyen et al.'s σ_z(z) in the depths.
+    fn kinect_scene(seed: u64, truth: &Pose3, n: usize) -> Vec<Correspondence> {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let (k, sensor) = (kinect(), MeasurementNoise::default());
+        let observe = |rng: &mut ChaCha8Rng, p: Point3<f64>| {
+            let px = Point2::new(
+                k.fx * p.x / p.z + k.cx + noise(rng, 0.3),
+                k.fy * p.y / p.z + k.cy + noise(rng, 0.3),
+            );
+            let z = p.z + noise(rng, sensor.depth_sigma_m(p.z, 0.0));
+            (px, crate::depth::lift(&k, px, z))
+        };
+        (0..n)
+            .map(|_| {
+                let u = Point2::new(rng.gen_range(0.0..640.0), rng.gen_range(0.0..480.0));
+                let z: f64 = rng.gen_range(0.6..4.5);
+                let p = crate::depth::lift(&k, u, z);
+                let (_, reference) = observe(&mut rng, p);
+                let (current_px, current) = observe(&mut rng, truth * p);
+                Correspondence {
+                    reference,
+                    current,
+                    current_px,
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn weighting_by_depth_noise_beats_equal_weights() {
+        let truth = motion();
+        let weighted = MotionConfig {
+            noise: MeasurementNoise {
+                pixel_sigma_px: 0.3,
+                ..MeasurementNoise::default()
+            },
+            ..MotionConfig::default()
+        };
+        let equal = MotionConfig {
+            weight_by_noise: false,
+            ..MotionConfig::default()
+        };
+        // summed translation [m] and rotation [rad] errors over 20 scenes
+        let (mut weighted_err, mut equal_err) = ([0.0; 2], [0.0; 2]);
+        for seed in 0..20 {
+            let data = kinect_scene(seed, &truth, 150);
+            let all: Vec<usize> = (0..data.len()).collect();
+            let start = fit_horn(&data, &all).unwrap();
+            for (config, sum) in [(&weighted, &mut weighted_err), (&equal, &mut equal_err)] {
+                let err = truth.inverse() * refine(&data, &all, &camera(), start, config);
+                sum[0] += err.translation.vector.norm();
+                sum[1] += err.rotation.angle();
+            }
+        }
+        eprintln!("summed errors: weighted {weighted_err:?}, equal weights {equal_err:?}");
+        assert!(
+            weighted_err[0] < 0.9 * equal_err[0],
+            "{weighted_err:?} vs {equal_err:?}"
+        );
+        assert!(
+            weighted_err[1] < 1.02 * equal_err[1],
+            "{weighted_err:?} vs {equal_err:?}"
+        );
     }
 
     #[test]
