@@ -90,14 +90,13 @@ pub struct KltPyramid {
 impl KltPyramid {
     /// Builds levels `0..=max_level` of `img`.
     pub fn new(img: &GrayImage, max_level: usize) -> Self {
-        let pyr = Pyramid::new(img, max_level);
-        let levels = pyr
-            .levels()
-            .iter()
-            .map(|l| {
-                let g = scharr(l);
+        let levels = Pyramid::new(img, max_level)
+            .into_levels()
+            .into_iter()
+            .map(|img| {
+                let g = scharr(&img);
                 Level {
-                    img: l.clone(),
+                    img,
                     gx: g.gx,
                     gy: g.gy,
                 }

@@ -70,6 +70,11 @@ impl Pyramid {
     pub fn levels(&self) -> &[GrayImage] {
         &self.levels
     }
+
+    /// The levels, finest first, by value.
+    pub fn into_levels(self) -> Vec<GrayImage> {
+        self.levels
+    }
 }
 
 /// Bilinear resize to `dw × dh` with OpenCV's `INTER_LINEAR` sample positions
