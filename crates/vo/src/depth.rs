@@ -84,7 +84,8 @@ impl DepthRegistration {
 /// The hot loop avoids libm: a projection `u` is kept when `round(u)` lands in `0..w`, i.e.
 /// when `−0.5 < u < w − 0.5`, and then `round(u)` is `⌊u + 0.5⌋`, a truncating conversion of a
 /// positive number (no call to `round`, which the baseline x86-64 target cannot inline). The
-/// per-column factors `(x − cx)/fx` are computed once per image instead of once per pixel.
+/// per-column factors `fx' (x − cx)/fx` are computed once per image instead of once per pixel,
+/// and one reciprocal of the depth serves both image coordinates.
 pub fn register_depth(
     depth_m: &Image<f32>,
     depth_k: &Intrinsics,
@@ -93,24 +94,28 @@ pub fn register_depth(
     let (w, h) = (depth_m.width(), depth_m.height());
     let color_k = reg.color_camera(w, h);
     let [tx, ty, tz] = reg.color_from_depth_m;
+    // u = fx' (nx z + tx) / (z + tz) + cx' = (fx' nx · z + fx' tx) / (z + tz) + cx': the
+    // factor fx' nx is per column, fy' ny per row, and one reciprocal serves both coordinates.
     let columns: Vec<f64> = (0..w)
-        .map(|x| (x as f64 - depth_k.cx) / depth_k.fx)
+        .map(|x| color_k.fx * (x as f64 - depth_k.cx) / depth_k.fx)
         .collect();
+    let (fx_tx, fy_ty) = (color_k.fx * tx, color_k.fy * ty);
     let (u_end, v_end) = (w as f64 - 0.5, h as f64 - 0.5);
     let mut out = vec![f32::INFINITY; w * h];
     for (y, row) in depth_m.data().chunks_exact(w.max(1)).enumerate() {
-        let ny = (y as f64 - depth_k.cy) / depth_k.fy;
-        for (&d, &nx) in row.iter().zip(&columns) {
+        let fy_ny = color_k.fy * (y as f64 - depth_k.cy) / depth_k.fy;
+        for (&d, &fx_nx) in row.iter().zip(&columns) {
             if !(d > 0.0 && d.is_finite()) {
                 continue;
             }
             let z = f64::from(d);
-            let (px, py, pz) = (nx * z + tx, ny * z + ty, z + tz);
+            let pz = z + tz;
             if pz <= 0.0 {
                 continue;
             }
-            let u = color_k.fx * px / pz + color_k.cx;
-            let v = color_k.fy * py / pz + color_k.cy;
+            let inverse = pz.recip();
+            let u = (fx_nx * z + fx_tx) * inverse + color_k.cx;
+            let v = (fy_ny * z + fy_ty) * inverse + color_k.cy;
             if !(u > -0.5 && u < u_end && v > -0.5 && v < v_end) {
                 continue;
             }
