@@ -13,7 +13,7 @@ use serde::Serialize;
 use slamkit_core::Pose3;
 use slamkit_vision::klt::track;
 use slamkit_vision::matching::match_descriptors_within;
-use slamkit_vision::{Descriptor, KltPyramid};
+use slamkit_vision::{Descriptor, DescriptorMatch, KltPyramid};
 
 use crate::config::{FrontendKind, TrackingMode, VoConfig};
 use crate::frame::PreparedFrame;
@@ -287,7 +287,6 @@ impl Odometry {
         reference: &Reference,
         frame: &PreparedFrame,
     ) -> Result<Vec<Match>, FailReason> {
-        let lm = &self.config.local_map;
         let f = &frame.features;
         let camera_from_ref =
             self.predicted_pose(frame.index).inverse() * reference.world_from_camera;
@@ -305,19 +304,7 @@ impl Odometry {
             .map(|r| project(&frame.camera, &(camera_from_ref * r.point)).unwrap_or([f32::NAN; 2]))
             .collect();
         let query_px: Vec<[f32; 2]> = f.pixels.iter().map(|p| [p.x as f32, p.y as f32]).collect();
-        let search = |r: f64| {
-            match_descriptors_within(
-                (&f.descriptors, &query_px),
-                (&train, &train_px),
-                r as f32,
-                &self.config.matching,
-            )
-            .map_err(|e| FailReason::Kernel(e.to_string()))
-        };
-        let mut matches = search(lm.search_radius_px)?;
-        if matches.len() < lm.min_window_matches {
-            matches = search(lm.recovery_radius_px)?;
-        }
+        let matches = self.guided_matches((&f.descriptors, &query_px), (&train, &train_px))?;
         Ok(matches
             .into_iter()
             .filter_map(|m| {
@@ -332,6 +319,26 @@ impl Odometry {
             .collect())
     }
 
+    /// Descriptor matches between `query` and `train` (descriptors with pixel positions) within
+    /// the local map's search radius, widened once to the recovery radius when too few match.
+    fn guided_matches(
+        &self,
+        query: (&[Descriptor], &[[f32; 2]]),
+        train: (&[Descriptor], &[[f32; 2]]),
+    ) -> Result<Vec<DescriptorMatch>, FailReason> {
+        let lm = &self.config.local_map;
+        let search = |radius_px: f64| {
+            match_descriptors_within(query, train, radius_px as f32, &self.config.matching)
+                .map_err(|e| FailReason::Kernel(e.to_string()))
+        };
+        let matches = search(lm.search_radius_px)?;
+        if matches.len() < lm.min_window_matches {
+            search(lm.recovery_radius_px)
+        } else {
+            Ok(matches)
+        }
+    }
+
     /// ORB with the local map: the landmarks projected into the predicted pose, each matched
     /// to the frame's features with depth near its projection (the search widened once when
     /// too few match).
@@ -340,7 +347,6 @@ impl Odometry {
         frame: &PreparedFrame,
         ref_from_world: &Pose3,
     ) -> Result<Vec<Match>, FailReason> {
-        let lm = &self.config.local_map;
         let f = &frame.features;
         let camera_from_world = self.predicted_pose(frame.index).inverse();
         let (ids, descriptors, pixels) = self.map.project(&camera_from_world, &frame.camera, None);
@@ -355,19 +361,7 @@ impl Odometry {
             .iter()
             .filter_map(|&i| f.pixels.get(i).map(|p| [p.x as f32, p.y as f32]))
             .collect();
-        let search = |r: f64| {
-            match_descriptors_within(
-                (&descriptors, &pixels),
-                (&train_d, &train_px),
-                r as f32,
-                &self.config.matching,
-            )
-            .map_err(|e| FailReason::Kernel(e.to_string()))
-        };
-        let mut matches = search(lm.search_radius_px)?;
-        if matches.len() < lm.min_window_matches {
-            matches = search(lm.recovery_radius_px)?;
-        }
+        let matches = self.guided_matches((&descriptors, &pixels), (&train_d, &train_px))?;
         Ok(matches
             .into_iter()
             .filter_map(|m| {
