@@ -10,9 +10,10 @@ use slamkit_vision::color::{rgb_to_gray, rgb_to_lab_planes};
 use slamkit_vision::{shi_tomasi, Clahe, Descriptor, KltPyramid, Orb, StereoPair};
 
 use crate::config::{FrontendKind, VoConfig};
-use crate::depth::{depth_at, lift, register_depth};
+use crate::depth::{depth_at, lift};
 use crate::error::VoError;
 use crate::motion::StereoCamera;
+use crate::registration::RegisteredDepth;
 use crate::FailReason;
 
 /// Camera-frame points and their RGB colours, index-aligned.
@@ -61,6 +62,8 @@ pub enum Rig {
 enum DepthSource {
     /// Depth \[m\] registered to the tracked image.
     Image(Image<f32>),
+    /// Depth \[m\] of an unregistered depth camera, read in the tracked (colour) image.
+    Registered(Box<RegisteredDepth>),
     /// A rectified pair, prepared once for all the points matched in it.
     Right(Box<StereoPair>),
 }
@@ -154,11 +157,13 @@ impl Preprocessor {
                     return Err(FailReason::SizeMismatch);
                 }
                 let depth = match (&self.rig, &self.config.register_depth) {
-                    (Rig::Rgbd { depth: k, .. }, Some(reg)) => register_depth(&depth_m, k, reg),
-                    _ => depth_m,
+                    (Rig::Rgbd { depth: k, .. }, Some(reg)) => {
+                        DepthSource::Registered(Box::new(RegisteredDepth::new(depth_m, k, reg)))
+                    }
+                    _ => DepthSource::Image(depth_m),
                 };
                 let gray = self.gray_of(&color);
-                (gray, DepthSource::Image(depth), Some(color))
+                (gray, depth, Some(color))
             }
             SensorImages::Stereo { left, right } => {
                 if (left.width(), left.height()) != (right.width(), right.height()) {
@@ -246,7 +251,7 @@ impl PreparedFrame {
     pub fn stereo_camera(&self, config: &VoConfig) -> StereoCamera {
         let baseline = match self.depth {
             DepthSource::Right(_) => self.baseline_m,
-            DepthSource::Image(_) => config.depth.virtual_baseline_m,
+            DepthSource::Image(_) | DepthSource::Registered(_) => config.depth.virtual_baseline_m,
         };
         StereoCamera {
             k: self.camera,
@@ -274,6 +279,10 @@ impl PreparedFrame {
                 .iter()
                 .map(|&px| depth_at(depth, px, &config.depth).map(|z| lift(k, px, z)))
                 .collect()),
+            DepthSource::Registered(depth) => Ok(pixels
+                .iter()
+                .map(|&px| depth.depth_at(px, &config.depth).map(|z| lift(k, px, z)))
+                .collect()),
             DepthSource::Right(pair) => {
                 let pts: Vec<(f32, f32)> =
                     pixels.iter().map(|p| (p.x as f32, p.y as f32)).collect();
@@ -292,8 +301,9 @@ impl PreparedFrame {
         }
     }
 
-    /// Map points: every 4th depth pixel with its colour (RGB-D), the features with depth
-    /// (stereo, grey).
+    /// Map points: every 4th depth pixel with its colour (RGB-D; for an unregistered pair the
+    /// depth camera's pixels moved into the colour camera), the features with depth (stereo,
+    /// grey).
     fn map_points(&self, color: Option<&RgbImage>, config: &VoConfig) -> ColoredPoints {
         match (&self.depth, color) {
             (DepthSource::Image(depth), Some(color)) => {
@@ -313,6 +323,11 @@ impl PreparedFrame {
                 }
                 out
             }
+            (DepthSource::Registered(depth), Some(color)) => depth
+                .samples(4, &config.depth)
+                .into_iter()
+                .filter_map(|(p, (u, v))| Some((p, *color.get(u, v)?)))
+                .unzip(),
             _ => {
                 let f = &self.features;
                 f.points

@@ -6,6 +6,8 @@
 //! * [`frame`]: preprocessing (CLAHE), detection (Shi–Tomasi or ORB), depth of features.
 //! * [`depth`]: depth of features from an RGB-D depth image, registered to the colour camera;
 //!   stereo depth comes from `slamkit_vision::stereo`.
+//! * [`registration`]: depth of an unregistered RGB-D pair read in the colour camera at the
+//!   features only.
 //! * [`motion`]: RANSAC over 3-point Horn samples, inlier refit and Gauss–Newton refinement on
 //!   reprojection error.
 //! * [`odometry`]: frame-to-frame or local-map tracking, failed frames keeping the reference.
@@ -24,6 +26,7 @@ pub mod metrics;
 pub mod motion;
 pub mod odometry;
 pub mod pipeline;
+pub mod registration;
 pub mod voxel_map;
 
 pub use config::{FrontendKind, TrackingMode, VoConfig};

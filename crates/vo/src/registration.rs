@@ -1,0 +1,293 @@
+//! Depth of an unregistered RGB-D pair (Kinect v1 in 7-Scenes; `CAMERA_SOURCES.md` §7) read in
+//! the colour camera at the features only, instead of warping the whole depth image first.
+//!
+//! The registered depth of a colour pixel is defined by the forward warp: every depth pixel is
+//! lifted to 3D with the depth intrinsics, moved by `color_from_depth` and projected with the
+//! colour intrinsics; a colour pixel keeps the nearest of the depths landing on it (a z-buffer),
+//! and an empty pixel whose left/right or up/down neighbours agree within 5 % takes the nearer
+//! of them (the one-pixel cracks a magnifying warp leaves). A feature needs that image on its
+//! 3×3 neighbourhood only ([`crate::depth`]), which depends on the unfilled z-buffer on the 5×5
+//! block around it.
+//!
+//! Which depth pixels can land on a block is known without projecting them all: a pixel's
+//! colour column depends on its depth column and depth only, its colour row on its depth row
+//! and depth only, both monotonically in the depth. With the frame's depth range
+//! `[z_min, z_max]`, the depth columns that can reach each colour column (and rows for each
+//! colour row) are one interval, computed once per frame. A block then projects only the
+//! depth pixels of its candidate rows and columns — along the epipolar line of the rig, ±the
+//! parallax of the depth range — with exactly the arithmetic of a full warp, so the result is
+//! the full warp's, bit for bit (tested against it on synthetic and real frames). For the
+//! 7-Scenes rig (2.5 cm baseline, depths 0.8–3.5 m) that is about 20 columns on 6 rows per
+//! feature, instead of all 307 200 pixels per frame.
+
+use nalgebra::{Point2, Point3};
+use slamkit_core::camera::Intrinsics;
+use slamkit_core::image::Image;
+
+use crate::depth::{depth_of_patch, DepthConfig, DepthRegistration};
+
+/// Slack on a projection's bounds over the depth range \[px\], far above rounding error.
+const BOUND_SLACK_PX: f64 = 1e-6;
+
+/// A depth image with the geometry to read it in the colour camera.
+#[derive(Debug, Clone)]
+pub struct RegisteredDepth {
+    depth: Image<f32>,
+    depth_k: Intrinsics,
+    color_k: Intrinsics,
+    translation: [f64; 3],
+    /// `fx' (x − cx) / fx` per depth column.
+    columns: Vec<f64>,
+    /// `fy' (y − cy) / fy` per depth row.
+    rows: Vec<f64>,
+    /// Depth columns that can land on each colour column (inclusive; empty when lo > hi).
+    column_candidates: Vec<(usize, usize)>,
+    /// Depth rows that can land on each colour row.
+    row_candidates: Vec<(usize, usize)>,
+}
+
+impl RegisteredDepth {
+    /// Prepares `depth_m` (seen by a camera with intrinsics `depth_k`) for lookups in the
+    /// colour camera of `reg`, which has the size of the depth image.
+    pub fn new(depth_m: Image<f32>, depth_k: &Intrinsics, reg: &DepthRegistration) -> Self {
+        let (w, h) = (depth_m.width(), depth_m.height());
+        let color_k = reg.color_camera(w, h);
+        let columns: Vec<f64> = (0..w)
+            .map(|x| color_k.fx * (x as f64 - depth_k.cx) / depth_k.fx)
+            .collect();
+        let rows: Vec<f64> = (0..h)
+            .map(|y| color_k.fy * (y as f64 - depth_k.cy) / depth_k.fy)
+            .collect();
+        let tz = reg.color_from_depth_m[2];
+        let (column_candidates, row_candidates) = match depth_range(&depth_m, tz) {
+            Some(range) => {
+                let [tx, ty, _] = reg.color_from_depth_m;
+                let axis = |f_t: f64, c: f64| move |f_n: f64, d: f32| axis(f_n, f_t, d, tz, c);
+                (
+                    candidates(&columns, axis(color_k.fx * tx, color_k.cx), range),
+                    candidates(&rows, axis(color_k.fy * ty, color_k.cy), range),
+                )
+            }
+            None => (Vec::new(), Vec::new()),
+        };
+        Self {
+            depth: depth_m,
+            depth_k: *depth_k,
+            color_k,
+            translation: reg.color_from_depth_m,
+            columns,
+            rows,
+            column_candidates,
+            row_candidates,
+        }
+    }
+
+    /// The colour pixel a depth pixel at column/row factors `(fx_nx, fy_ny)` with depth `d`
+    /// lands on, and its depth in the colour camera.
+    fn project(&self, fx_nx: f64, fy_ny: f64, d: f32) -> Option<(usize, usize, f32)> {
+        if !(d > 0.0 && d.is_finite()) {
+            return None;
+        }
+        let (k, [tx, ty, tz]) = (&self.color_k, self.translation);
+        let z = f64::from(d);
+        let pz = z + tz;
+        if pz <= 0.0 {
+            return None;
+        }
+        let inverse = pz.recip();
+        let u = (fx_nx * z + k.fx * tx) * inverse + k.cx;
+        let v = (fy_ny * z + k.fy * ty) * inverse + k.cy;
+        let (w, h) = (self.depth.width(), self.depth.height());
+        if !(u > -0.5 && u < w as f64 - 0.5 && v > -0.5 && v < h as f64 - 0.5) {
+            return None;
+        }
+        Some((
+            ((u + 0.5) as usize).min(w - 1),
+            (v + 0.5) as usize,
+            pz as f32,
+        ))
+    }
+
+    /// The unfilled z-buffer on the 5×5 block of colour pixels centred on `(x0, y0)`
+    /// (`INFINITY` where nothing lands or outside the image).
+    fn block(&self, x0: usize, y0: usize) -> [[f32; 5]; 5] {
+        let mut block = [[f32::INFINITY; 5]; 5];
+        let (w, h) = (self.depth.width(), self.depth.height());
+        let (ua, ub) = (x0.saturating_sub(2), (x0 + 2).min(w - 1));
+        let (va, vb) = (y0.saturating_sub(2), (y0 + 2).min(h - 1));
+        let Some(xs) = hull(self.column_candidates.get(ua..=ub)) else {
+            return block;
+        };
+        let Some(ys) = hull(self.row_candidates.get(va..=vb)) else {
+            return block;
+        };
+        for y in ys.0..=ys.1 {
+            let (Some(row), Some(&fy_ny)) = (self.depth.row(y), self.rows.get(y)) else {
+                continue;
+            };
+            let (Some(ds), Some(fs)) = (row.get(xs.0..=xs.1), self.columns.get(xs.0..=xs.1)) else {
+                continue;
+            };
+            for (&d, &fx_nx) in ds.iter().zip(fs) {
+                let Some((u, v, z)) = self.project(fx_nx, fy_ny, d) else {
+                    continue;
+                };
+                if (ua..=ub).contains(&u) && (va..=vb).contains(&v) {
+                    let cell = &mut block[v + 2 - y0][u + 2 - x0];
+                    *cell = cell.min(z);
+                }
+            }
+        }
+        block
+    }
+
+    /// Depth \[m\] in the colour camera of the feature at `px`, or `None` (hole, out of range,
+    /// depth edge) — what [`crate::depth::depth_at`] reads in the fully warped image.
+    pub fn depth_at(&self, px: Point2<f64>, config: &DepthConfig) -> Option<f64> {
+        let (w, h) = (self.depth.width(), self.depth.height());
+        if !(px.x.is_finite() && px.y.is_finite()) {
+            return None;
+        }
+        let (x, y) = (px.x.round(), px.y.round());
+        if x < 1.0 || y < 1.0 || x >= w as f64 - 1.0 || y >= h as f64 - 1.0 {
+            return None;
+        }
+        let (x0, y0) = (x as usize, y as usize);
+        let block = self.block(x0, y0);
+        let mut patch = [[0f32; 3]; 3];
+        for (dy, line) in patch.iter_mut().enumerate() {
+            for (dx, cell) in line.iter_mut().enumerate() {
+                *cell = filled(&block, (dx + 1, dy + 1), (x0 + dx - 1, y0 + dy - 1), (w, h));
+            }
+        }
+        depth_of_patch(&patch, config)
+    }
+
+    /// Points for the world map: every `step`-th depth pixel with a depth in the configured
+    /// range, in the colour camera, with the colour pixel it projects to (pixels projecting
+    /// outside the colour image are left out).
+    pub fn samples(&self, step: usize, config: &DepthConfig) -> Vec<(Point3<f64>, (usize, usize))> {
+        let (w, h) = (self.depth.width(), self.depth.height());
+        let [tx, ty, tz] = self.translation;
+        let mut out = Vec::new();
+        for y in (0..h).step_by(step.max(1)) {
+            for x in (0..w).step_by(step.max(1)) {
+                let Some(&d) = self.depth.get(x, y) else {
+                    continue;
+                };
+                let z = f64::from(d);
+                if !(z >= config.min_depth_m && z <= config.max_depth_m) {
+                    continue;
+                }
+                let p = crate::depth::lift(&self.depth_k, Point2::new(x as f64, y as f64), z);
+                let p = Point3::new(p.x + tx, p.y + ty, p.z + tz);
+                if p.z <= 0.0 {
+                    continue;
+                }
+                let u = (self.color_k.fx * p.x / p.z + self.color_k.cx).round();
+                let v = (self.color_k.fy * p.y / p.z + self.color_k.cy).round();
+                if u >= 0.0 && v >= 0.0 && u < w as f64 && v < h as f64 {
+                    out.push((p, (u as usize, v as usize)));
+                }
+            }
+        }
+        out
+    }
+}
+
+/// The smallest and largest depth of `depth` that projects (finite, > 0, in front of the
+/// colour camera, which sits `tz` ahead), or `None` when no pixel does.
+fn depth_range(depth: &Image<f32>, tz: f64) -> Option<(f32, f32)> {
+    let floor = (-tz).max(0.0);
+    let (lo, hi) = depth
+        .data()
+        .iter()
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &d| {
+            if f64::from(d) > floor && d.is_finite() {
+                (lo.min(d), hi.max(d))
+            } else {
+                (lo, hi)
+            }
+        });
+    (lo <= hi).then_some((lo, hi))
+}
+
+/// One colour image coordinate of a depth pixel with factor `f_n` (`f' n`) at depth `d`:
+/// `(f' n · z + f' t) / (z + tz) + c'`, with the arithmetic of [`RegisteredDepth::project`]
+/// (`None` when `d` does not project).
+fn axis(f_n: f64, f_t: f64, d: f32, tz: f64, c: f64) -> Option<f64> {
+    if !(d > 0.0 && d.is_finite()) {
+        return None;
+    }
+    let z = f64::from(d);
+    let pz = z + tz;
+    (pz > 0.0).then(|| (f_n * z + f_t) * pz.recip() + c)
+}
+
+/// The filled value of the colour pixel `(x, y)` at `at` in `block`: its own depth, or for an
+/// empty interior pixel the nearer of its left/right (else up/down) neighbours when they
+/// agree within 5 %; 0 when it stays empty.
+fn filled(
+    block: &[[f32; 5]; 5],
+    at: (usize, usize),
+    (x, y): (usize, usize),
+    (w, h): (usize, usize),
+) -> f32 {
+    let (bx, by) = at;
+    let own = block[by][bx];
+    if own.is_finite() {
+        return own;
+    }
+    if w >= 3 && h >= 3 && (1..w - 1).contains(&x) && (1..h - 1).contains(&y) {
+        let pairs = [
+            (block[by][bx - 1], block[by][bx + 1]),
+            (block[by - 1][bx], block[by + 1][bx]),
+        ];
+        for (a, b) in pairs {
+            if a.is_finite() && b.is_finite() && (a - b).abs() <= 0.05 * a.min(b) {
+                return a.min(b);
+            }
+        }
+    }
+    0.0
+}
+
+/// The interval of the union of `ranges` (`None` when all are empty or the slice is missing).
+fn hull(ranges: Option<&[(usize, usize)]>) -> Option<(usize, usize)> {
+    let (lo, hi) = ranges?
+        .iter()
+        .filter(|(lo, hi)| lo <= hi)
+        .fold((usize::MAX, 0), |(a, b), &(lo, hi)| (a.min(lo), b.max(hi)));
+    (lo <= hi).then_some((lo, hi))
+}
+
+/// For each colour coordinate `0..factors.len()`, the interval of depth indices whose
+/// projection `project(factor, z)` can round to it for some depth in `range` (the
+/// projection is monotonic in the depth, so its extremes are at the range's ends).
+fn candidates(
+    factors: &[f64],
+    project: impl Fn(f64, f32) -> Option<f64>,
+    (z_lo, z_hi): (f32, f32),
+) -> Vec<(usize, usize)> {
+    let n = factors.len();
+    let mut out = vec![(usize::MAX, 0); n];
+    for (i, &f) in factors.iter().enumerate() {
+        let (Some(a), Some(b)) = (project(f, z_lo), project(f, z_hi)) else {
+            continue;
+        };
+        let (lo, hi) = (a.min(b) - BOUND_SLACK_PX, a.max(b) + BOUND_SLACK_PX);
+        if !(hi > -0.5 && lo < n as f64 - 0.5) {
+            continue;
+        }
+        let first = (lo + 0.5).max(0.0) as usize;
+        let last = ((hi + 0.5) as usize).min(n - 1);
+        for c in out.get_mut(first..=last).into_iter().flatten() {
+            c.0 = c.0.min(i);
+            c.1 = c.1.max(i);
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests;
