@@ -4,12 +4,15 @@
 //! Its score is the largest threshold for which that still holds (OpenCV's `cornerScore`), and
 //! non-maximum suppression keeps corners whose score beats all 8 neighbours.
 //!
-//! Each row first goes through a branch-free test on the four compass pixels that the compiler
-//! vectorises (any 9-arc contains an element of each opposite pair, so both pairs must pass);
-//! only the survivors get the full 16-pixel test.
+//! Rows are processed in chunks of 32 pixels with lane-wise (vectorised) arithmetic, as OpenCV's
+//! SIMD FAST: the four compass pixels first (any 9-arc contains an element of each opposite
+//! pair, so both pairs must pass), which rejects most chunks; then the full segment test
+//! counts, per lane, the run of consecutive brighter (darker) circle pixels over 25 steps
+//! around the circle. Only corners get a score, from sliding minima over the circle.
 
 use slamkit_core::image::GrayImage;
 
+use crate::simd::dispatch_avx2;
 /// Circle offsets (dx, dy), clockwise from straight below, as OpenCV's `offsets16`.
 const CIRCLE: [(isize, isize); 16] = [
     (0, 3),
@@ -41,48 +44,66 @@ pub struct FastCorner {
     pub score: u8,
 }
 
-/// Detects FAST-9 corners at least `border` (≥ 3) pixels from every edge, optionally with 3×3
-/// non-maximum suppression. Corners come row by row, left to right.
-pub fn fast9(img: &GrayImage, threshold: u8, border: usize, nonmax: bool) -> Vec<FastCorner> {
+dispatch_avx2! {
+    /// Detects FAST-9 corners at least `border` (≥ 3) pixels from every edge, optionally with
+    /// 3×3 non-maximum suppression. Corners come row by row, left to right.
+    pub fn fast9 => fast9_portable(img: &GrayImage, threshold: u8, border: usize, nonmax: bool) -> Vec<FastCorner>
+}
+
+/// Pixels tested together.
+const LANES: usize = 32;
+type Lanes = [u8; LANES];
+
+#[inline(always)]
+fn fast9_portable(img: &GrayImage, threshold: u8, border: usize, nonmax: bool) -> Vec<FastCorner> {
     let (w, h) = (img.width(), img.height());
     let border = border.max(3);
     if w <= 2 * border || h <= 2 * border {
         return Vec::new();
     }
     let data = img.data();
-    let n = w - 2 * border;
-    let mut mask = vec![false; n];
     let mut scores = if nonmax { vec![0u8; w * h] } else { Vec::new() };
     let mut corners = Vec::new();
     let offsets: [isize; 16] = CIRCLE.map(|(dx, dy)| dy * w as isize + dx);
+    // the farthest circle pixel is 3 rows and 3 columns away
+    let reach = 3 * w + 3 + LANES;
+    let mut tail = [[0u8; LANES]; 17];
     for y in border..h - border {
-        let row = |dy: isize| {
-            let r = (y as isize + dy) as usize * w;
-            &data[r..r + w]
-        };
-        let (up, mid, dn) = (row(-3), row(0), row(3));
-        prefilter(
-            &mid[border..border + n],
-            [
-                &dn[border..],
-                &up[border..],
-                &mid[border + 3..],
-                &mid[border - 3..],
-            ],
-            threshold,
-            &mut mask,
-        );
-        for (i, _) in mask.iter().enumerate().filter(|(_, &m)| m) {
-            let x = border + i;
-            let c = y * w + x;
-            let mut ring = [0u8; 16];
-            for (r, &o) in ring.iter_mut().zip(&offsets) {
-                *r = data[(c as isize + o) as usize];
+        for x0 in (border..w - border).step_by(LANES) {
+            let c0 = y * w + x0;
+            let starts: [usize; 17] = std::array::from_fn(|k| match offsets.get(k) {
+                Some(&o) => c0.wrapping_add_signed(o),
+                None => c0,
+            });
+            // chunks that would run past the image (last rows) are copied, zero-padded
+            let chunks: [&Lanes; 17] = if c0 + reach <= data.len() {
+                starts.map(|s| as_lanes(&data[s..]))
+            } else {
+                for (t, &s) in tail.iter_mut().zip(&starts) {
+                    *t = load(data, s);
+                }
+                std::array::from_fn(|k| &tail[k])
+            };
+            let (ring, centre) = chunks.split_at(16);
+            let (Ok(ring), [centre]) = (<&[&Lanes; 16]>::try_from(ring), centre) else {
+                continue;
+            };
+            let mut found = segment_test(centre, ring, threshold);
+            let lanes = (w - border - x0).min(LANES);
+            if lanes < LANES {
+                found &= (1u32 << lanes) - 1;
             }
-            if let Some(score) = corner_score(mid[x], &ring, threshold) {
-                corners.push(FastCorner { x, y, score });
+            while found != 0 {
+                let lane = found.trailing_zeros() as usize;
+                found &= found - 1;
+                let score = corner_score(centre[lane], &ring.map(|r| r[lane]), threshold);
+                corners.push(FastCorner {
+                    x: x0 + lane,
+                    y,
+                    score,
+                });
                 if nonmax {
-                    scores[c] = score.saturating_add(1);
+                    scores[c0 + lane] = score.saturating_add(1);
                 }
             }
         }
@@ -107,72 +128,195 @@ pub fn fast9(img: &GrayImage, threshold: u8, border: usize, nonmax: bool) -> Vec
     corners
 }
 
-/// Row-wise compass test: `mask\[i\]` when both opposite pairs (below/above, right/left) have a
-/// pixel brighter than `v + t`, or both have one darker than `v − t`.
-fn prefilter(centre: &[u8], [dn, up, right, left]: [&[u8]; 4], t: u8, mask: &mut [bool]) {
-    let it = centre.iter().zip(dn).zip(up).zip(right).zip(left);
-    for (m, ((((&v, &p0), &p8), &p4), &p12)) in mask.iter_mut().zip(it) {
-        let (hi, lo) = (v.saturating_add(t), v.saturating_sub(t));
-        let bright = ((p0 > hi) | (p8 > hi)) & ((p4 > hi) | (p12 > hi));
-        let dark = ((p0 < lo) | (p8 < lo)) & ((p4 < lo) | (p12 < lo));
-        *m = bright | dark;
-    }
+/// The first `LANES` pixels of `s` (which the caller makes at least that long).
+#[inline(always)]
+fn as_lanes(s: &[u8]) -> &Lanes {
+    const ZERO: Lanes = [0; LANES];
+    s.get(..LANES)
+        .and_then(|s| <&Lanes>::try_from(s).ok())
+        .unwrap_or(&ZERO)
 }
 
-/// Full segment test; `Some(score)` when 9 contiguous ring pixels differ by more than `t`.
-fn corner_score(v: u8, ring: &[u8; 16], t: u8) -> Option<u8> {
-    let (hi, lo) = (v.saturating_add(t), v.saturating_sub(t));
-    let (mut bright, mut dark) = (0u32, 0u32);
-    for (k, &p) in ring.iter().enumerate() {
-        bright |= u32::from(p > hi) << k;
-        dark |= u32::from(p < lo) << k;
+/// `LANES` pixels from `start`; lanes past the end of the image are 0 (and masked by the caller).
+#[inline(always)]
+fn load(data: &[u8], start: usize) -> Lanes {
+    let mut out = [0u8; LANES];
+    if let Some(s) = data.get(start..start + LANES) {
+        out.copy_from_slice(s);
+    } else if let Some(s) = data.get(start..) {
+        out[..s.len()].copy_from_slice(s);
     }
-    if !has_arc9(bright) && !has_arc9(dark) {
-        return None;
-    }
-    // Score: the best arc's smallest difference, minus one (strictly-greater test).
-    let mut diff = [0i16; 25];
-    for (d, k) in diff.iter_mut().zip((0..25).map(|k| k % 16)) {
-        *d = i16::from(ring[k]) - i16::from(v);
-    }
-    let (mut best_b, mut best_d) = (i16::MIN, i16::MIN);
-    for s in 0..16 {
-        let arc = &diff[s..s + 9];
-        let (mn, mx) = arc
-            .iter()
-            .fold((i16::MAX, i16::MIN), |(a, b), &d| (a.min(d), b.max(d)));
-        best_b = best_b.max(mn);
-        best_d = best_d.max(-mx);
-    }
-    Some((best_b.max(best_d) - 1).clamp(i16::from(t), 255) as u8)
+    out
 }
 
-/// Whether the 16-bit circular mask has 9 consecutive set bits.
-#[inline]
-fn has_arc9(m: u32) -> bool {
-    let mut r = m | (m << 16);
-    // r & (r >> 1) & ... (r >> 8): a bit survives when it starts a run of 9
-    let mut acc = r;
-    for _ in 0..8 {
-        r >>= 1;
-        acc &= r;
+/// Bit `i` set when lane `i` of `m` is true.
+#[inline(always)]
+fn bits(m: &[bool; LANES]) -> u32 {
+    m.iter()
+        .enumerate()
+        .fold(0, |acc, (i, &b)| acc | (u32::from(b) << i))
+}
+
+/// Lane-wise segment test: bit `i` set when 9 contiguous circle pixels of lane `i` are all
+/// brighter than `centre + t`, or all darker than `centre − t`.
+#[inline(always)]
+fn segment_test(centre: &Lanes, ring: &[&Lanes; 16], t: u8) -> u32 {
+    let hi = centre.map(|v| v.saturating_add(t));
+    let lo = centre.map(|v| v.saturating_sub(t));
+    // compass pixels 0, 4, 8, 12: both opposite pairs must have a brighter (darker) pixel
+    let mut pass = [false; LANES];
+    for (i, p) in pass.iter_mut().enumerate() {
+        let b = |k: usize| ring[k][i] > hi[i];
+        let d = |k: usize| ring[k][i] < lo[i];
+        *p = ((b(0) | b(8)) & (b(4) | b(12))) | ((d(0) | d(8)) & (d(4) | d(12)));
     }
-    acc & 0xFFFF != 0
+    if bits(&pass) == 0 {
+        return 0;
+    }
+    // run lengths of brighter (darker) pixels, 0xFF/0x00 masks, over 25 steps around the circle
+    let (mut run_b, mut run_d, mut max_b, mut max_d) =
+        ([0u8; LANES], [0u8; LANES], [0u8; LANES], [0u8; LANES]);
+    for k in 0..25 {
+        let r = &ring[k % 16];
+        for i in 0..LANES {
+            let b = u8::from(r[i] > hi[i]).wrapping_neg();
+            let d = u8::from(r[i] < lo[i]).wrapping_neg();
+            run_b[i] = (run_b[i] + 1) & b;
+            run_d[i] = (run_d[i] + 1) & d;
+            max_b[i] = max_b[i].max(run_b[i]);
+            max_d[i] = max_d[i].max(run_d[i]);
+        }
+    }
+    let mut corner = [false; LANES];
+    for (c, (&b, &d)) in corner.iter_mut().zip(max_b.iter().zip(&max_d)) {
+        *c = b >= 9 || d >= 9;
+    }
+    bits(&corner)
+}
+
+/// Score of a corner: the largest threshold at which it still passes, i.e. over all 9-arcs the
+/// best smallest difference to the centre (brighter or darker) minus one (the test is strict),
+/// at least `t`. Arc minima come from sliding minima of widths 2, 4, 8, 9.
+#[inline(always)]
+fn corner_score(v: u8, ring: &[u8; 16], t: u8) -> u8 {
+    // d[k] = ring[k mod 16] − v and its negation, over 25 positions (arcs that wrap around)
+    let (mut pos, mut neg) = ([0i16; 25], [0i16; 25]);
+    for (k, (p, n)) in pos.iter_mut().zip(neg.iter_mut()).enumerate() {
+        *p = i16::from(ring[k % 16]) - i16::from(v);
+        *n = -*p;
+    }
+    let best = |d: &[i16; 25]| -> i16 {
+        let mut m2 = [0i16; 24];
+        for (i, m) in m2.iter_mut().enumerate() {
+            *m = d[i].min(d[i + 1]);
+        }
+        let mut m4 = [0i16; 22];
+        for (i, m) in m4.iter_mut().enumerate() {
+            *m = m2[i].min(m2[i + 2]);
+        }
+        let mut m9 = [0i16; 16];
+        for (i, m) in m9.iter_mut().enumerate() {
+            *m = m4[i].min(m4[i + 4]).min(d[i + 8]);
+        }
+        m9.iter().fold(i16::MIN, |a, &b| a.max(b))
+    };
+    (best(&pos).max(best(&neg)) - 1).clamp(i16::from(t), 255) as u8
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
     use slamkit_core::image::Image;
 
+    /// Whether the 16-bit circular mask has 9 consecutive set bits.
+    fn has_arc9(m: u32) -> bool {
+        (0..16).any(|s| (0..9).all(|k| m >> ((s + k) % 16) & 1 == 1))
+    }
+
+    /// FAST-9 by the definition, one pixel at a time: the reference for the chunked kernel.
+    fn fast9_reference(img: &GrayImage, t: u8, border: usize, nonmax: bool) -> Vec<FastCorner> {
+        let (w, h) = (img.width() as isize, img.height() as isize);
+        let b = border.max(3) as isize;
+        let at = |x: isize, y: isize| *img.get(x as usize, y as usize).unwrap();
+        let mut found = Vec::new();
+        for y in b..h - b {
+            for x in b..w - b {
+                let v = at(x, y);
+                let ring = CIRCLE.map(|(dx, dy)| at(x + dx, y + dy));
+                let mask = |f: &dyn Fn(u8) -> bool| {
+                    (0..16).fold(0u32, |m, k| m | u32::from(f(ring[k])) << k)
+                };
+                let bright = mask(&|p| i16::from(p) > i16::from(v) + i16::from(t));
+                let dark = mask(&|p| i16::from(p) < i16::from(v) - i16::from(t));
+                if !has_arc9(bright) && !has_arc9(dark) {
+                    continue;
+                }
+                // the largest threshold that still passes
+                let score = (t..=254)
+                    .take_while(|&s| {
+                        let bb = mask(&|p| i16::from(p) > i16::from(v) + i16::from(s));
+                        let dd = mask(&|p| i16::from(p) < i16::from(v) - i16::from(s));
+                        has_arc9(bb) || has_arc9(dd)
+                    })
+                    .last()
+                    .unwrap_or(t);
+                found.push((x, y, score));
+            }
+        }
+        let score_at = |x: isize, y: isize| {
+            found
+                .iter()
+                .find(|c| c.0 == x && c.1 == y)
+                .map_or(0, |c| i16::from(c.2) + 1)
+        };
+        found
+            .iter()
+            .filter(|&&(x, y, s)| {
+                !nonmax
+                    || (-1..=1).all(|dy| {
+                        (-1..=1).all(|dx| {
+                            (dx == 0 && dy == 0) || i16::from(s) + 1 > score_at(x + dx, y + dy)
+                        })
+                    })
+            })
+            .map(|&(x, y, score)| FastCorner {
+                x: x as usize,
+                y: y as usize,
+                score,
+            })
+            .collect()
+    }
+
+    fn texture(w: usize, h: usize, seed: u64) -> GrayImage {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let noise = Image::from_vec(w, h, (0..w * h).map(|_| rng.gen()).collect()).unwrap();
+        crate::filter::gaussian_blur(&noise, 3, 0.8).unwrap()
+    }
+
+    /// The chunked kernel, with and without AVX2, equals the per-pixel definition on textured
+    /// images of widths that are and are not multiples of the chunk, including rows shorter
+    /// than one chunk.
     #[test]
-    fn arc_test() {
-        assert!(has_arc9(0b1_1111_1111));
-        assert!(has_arc9(0b1111_0000_0000_0011_1111 & 0xFFFF | 0xF000));
-        assert!(!has_arc9(0b1111_1111));
-        // wraps around: bits 12..15 and 0..4
-        assert!(has_arc9(0xF01F));
-        assert!(!has_arc9(0xF00F));
+    fn chunked_test_matches_the_definition() {
+        for (i, &(w, h, t, border, nonmax)) in [
+            (64, 20, 20u8, 3usize, true),
+            (77, 23, 10, 3, false),
+            (77, 23, 10, 3, true),
+            (45, 40, 25, 7, true),
+            (20, 12, 5, 3, true),
+            (140, 80, 30, 31, false),
+        ]
+        .iter()
+        .enumerate()
+        {
+            let img = texture(w, h, i as u64);
+            let want = fast9_reference(&img, t, border, nonmax);
+            assert!(!want.is_empty(), "case {i} has no corner");
+            assert_eq!(fast9(&img, t, border, nonmax), want, "case {i}");
+            assert_eq!(fast9_portable(&img, t, border, nonmax), want, "case {i}");
+        }
     }
 
     #[test]
@@ -182,10 +326,16 @@ mod tests {
             *r = 160;
         }
         ring[4] = 150; // weakest pixel of the arc: difference 50 from 100
-        let s = corner_score(100, &ring, 20).unwrap();
-        assert_eq!(s, 49);
-        assert!(corner_score(100, &ring, 49).is_some());
-        assert!(corner_score(100, &ring, 50).is_none());
+        assert_eq!(corner_score(100, &ring, 20), 49);
+        // a darker arc that wraps around the start of the circle, weakest difference 30
+        let mut ring = [100u8; 16];
+        for k in [12, 13, 14, 15, 0, 1, 2, 3, 4] {
+            ring[k] = 60;
+        }
+        ring[0] = 70;
+        assert_eq!(corner_score(100, &ring, 5), 29);
+        // never below the detection threshold
+        assert_eq!(corner_score(100, &ring, 35), 35);
     }
 
     /// A bright square on dark ground: FAST fires at its four corners.

@@ -30,6 +30,7 @@ pub mod orb;
 mod orb_pattern;
 pub mod pyramid;
 mod round;
+mod simd;
 pub mod stereo;
 
 pub use clahe::{Clahe, ClaheConfig};

@@ -6,6 +6,7 @@
 use slamkit_core::image::{GrayImage, Image};
 
 use crate::border::{pad_row, reflect101};
+use crate::simd::dispatch_avx2;
 
 /// Halves an image as `cv::pyrDown`: output `⌈w/2⌉ × ⌈h/2⌉`, reflect-101 border, rounded.
 pub fn pyr_down(img: &GrayImage) -> GrayImage {
@@ -77,44 +78,62 @@ impl Pyramid {
     }
 }
 
-/// Bilinear resize to `dw × dh` with OpenCV's `INTER_LINEAR` sample positions
-/// (`(x + 0.5)·w/dw − 0.5`, clamped to the image) and 11-bit fixed-point weights.
-pub fn resize_bilinear(img: &GrayImage, dw: usize, dh: usize) -> GrayImage {
+/// One output coordinate's source index and 11-bit weight of the next source sample.
+type Tap = (usize, u32);
+
+const RESIZE_ONE: u32 = 1 << 11;
+
+/// Source taps of OpenCV's `INTER_LINEAR` along one axis: sample `(i + 0.5)·n_in/n_out − 0.5`,
+/// clamped to the image, split into an index and a rounded 11-bit fraction.
+fn resize_taps(n_out: usize, n_in: usize) -> Vec<Tap> {
+    let scale = n_in as f64 / n_out as f64;
+    (0..n_out)
+        .map(|i| {
+            let s = ((i as f64 + 0.5) * scale - 0.5).max(0.0);
+            let i0 = (s.floor() as usize).min(n_in - 1);
+            let f = if i0 + 1 >= n_in { 0.0 } else { s - i0 as f64 };
+            (i0, (f * f64::from(RESIZE_ONE)).round() as u32)
+        })
+        .collect()
+}
+
+dispatch_avx2! {
+    /// Bilinear resize to `dw × dh` with OpenCV's `INTER_LINEAR` sample positions
+    /// (`(x + 0.5)·w/dw − 0.5`, clamped to the image) and 11-bit fixed-point weights.
+    ///
+    /// Each output row first blends its two source rows over the full width (a vectorised
+    /// multiply–add), then blends pairs of columns; the products are exact integers, so the
+    /// order of the two passes does not change the result.
+    pub fn resize_bilinear => resize_bilinear_portable(img: &GrayImage, dw: usize, dh: usize) -> GrayImage
+}
+
+#[inline(always)]
+fn resize_bilinear_portable(img: &GrayImage, dw: usize, dh: usize) -> GrayImage {
     let (w, h) = (img.width(), img.height());
     if w == 0 || h == 0 || dw == 0 || dh == 0 {
         return Image::filled(dw, dh, 0);
     }
-    const ONE: u32 = 1 << 11;
-    let taps = |n_out: usize, n_in: usize| -> Vec<(usize, u32)> {
-        let scale = n_in as f64 / n_out as f64;
-        (0..n_out)
-            .map(|i| {
-                let s = ((i as f64 + 0.5) * scale - 0.5).max(0.0);
-                let i0 = (s.floor() as usize).min(n_in - 1);
-                let f = if i0 + 1 >= n_in { 0.0 } else { s - i0 as f64 };
-                (i0, (f * f64::from(ONE)).round() as u32)
-            })
-            .collect()
-    };
-    let xt = taps(dw, w);
-    let yt = taps(dh, h);
+    let xt = resize_taps(dw, w);
+    let yt = resize_taps(dh, h);
     let data = img.data();
-    let mut h0 = vec![0u32; dw];
-    let mut h1 = vec![0u32; dw];
+    // one spare column so that the right tap of the last column exists (its weight is 0)
+    let mut blend = vec![0u32; w + 1];
     let mut out = vec![0u8; dw * dh];
-    let hrow = |sy: usize, dst: &mut [u32]| {
-        let row = &data[sy * w..(sy + 1) * w];
-        for (d, &(x0, fx)) in dst.iter_mut().zip(&xt) {
-            let a = u32::from(row[x0]);
-            let b = u32::from(*row.get(x0 + 1).unwrap_or(&row[x0]));
-            *d = a * (ONE - fx) + b * fx;
-        }
-    };
     for (dst, &(y0, fy)) in out.chunks_exact_mut(dw).zip(&yt) {
-        hrow(y0, &mut h0);
-        hrow((y0 + 1).min(h - 1), &mut h1);
-        for ((d, &a), &b) in dst.iter_mut().zip(&h0).zip(&h1) {
-            *d = ((a * (ONE - fy) + b * fy + (1 << 21)) >> 22) as u8;
+        let y1 = (y0 + 1).min(h - 1);
+        let (r0, r1) = (&data[y0 * w..(y0 + 1) * w], &data[y1 * w..(y1 + 1) * w]);
+        // 8-bit samples times 12-bit weights: 16-bit operands, exact 32-bit sums
+        let (w0, w1) = ((RESIZE_ONE - fy) as i16, fy as i16);
+        for ((b, &p0), &p1) in blend.iter_mut().zip(r0).zip(r1) {
+            let v = i32::from(p0 as i16) * i32::from(w0) + i32::from(p1 as i16) * i32::from(w1);
+            *b = v as u32;
+        }
+        blend[w] = blend[w - 1];
+        for (d, &(x0, fx)) in dst.iter_mut().zip(&xt) {
+            let (Some(&a), Some(&b)) = (blend.get(x0), blend.get(x0 + 1)) else {
+                continue;
+            };
+            *d = ((a * (RESIZE_ONE - fx) + b * fx + (1 << 21)) >> 22) as u8;
         }
     }
     match Image::from_vec(dw, dh, out) {
@@ -148,6 +167,46 @@ mod tests {
         assert_eq!(sizes, vec![(640, 480), (320, 240), (160, 120), (80, 60)]);
         let tiny = Pyramid::new(&Image::filled(1, 1, 0u8), 3);
         assert_eq!(tiny.levels().len(), 1);
+    }
+
+    /// Bilinear resize by its definition: horizontal blend of each source row, then vertical.
+    fn resize_reference(img: &GrayImage, dw: usize, dh: usize) -> Vec<u8> {
+        let (xt, yt) = (resize_taps(dw, img.width()), resize_taps(dh, img.height()));
+        let at = |x: usize, y: usize| u32::from(*img.get(x, y).unwrap());
+        let (wm, hm) = (img.width() - 1, img.height() - 1);
+        let mut out = Vec::new();
+        for &(y0, fy) in &yt {
+            for &(x0, fx) in &xt {
+                let hrow = |y| at(x0, y) * (RESIZE_ONE - fx) + at((x0 + 1).min(wm), y) * fx;
+                let v = hrow(y0) * (RESIZE_ONE - fy) + hrow((y0 + 1).min(hm)) * fy;
+                out.push(((v + (1 << 21)) >> 22) as u8);
+            }
+        }
+        out
+    }
+
+    /// Vertical-first blending (portable and AVX2 builds) equals the definition, shrinking and
+    /// enlarging, on one-pixel axes too.
+    #[test]
+    fn resize_matches_the_definition() {
+        let img = Image::from_vec(
+            53,
+            37,
+            (0..53 * 37u32)
+                .map(|i| (i.wrapping_mul(2_654_435_761) >> 24) as u8)
+                .collect(),
+        )
+        .unwrap();
+        for (dw, dh) in [(44, 31), (37, 26), (80, 50), (1, 1), (53, 37), (7, 90)] {
+            let want = resize_reference(&img, dw, dh);
+            assert_eq!(resize_bilinear(&img, dw, dh).data(), want, "{dw}x{dh}");
+            assert_eq!(resize_bilinear_portable(&img, dw, dh).data(), want);
+        }
+        let column = Image::from_vec(1, 5, vec![0u8, 50, 100, 150, 255]).unwrap();
+        assert_eq!(
+            resize_bilinear(&column, 3, 4).data(),
+            resize_reference(&column, 3, 4)
+        );
     }
 
     #[test]

@@ -1,0 +1,39 @@
+//! Run-time choice of a wider instruction set for the hot kernels, with one portable body.
+//!
+//! slamkit builds for the baseline x86-64 target (SSE2), which lacks a 32-bit vector multiply
+//! (`pmulld`, SSE4.1), byte shuffles (`pshufb`, SSSE3) and 256-bit registers: loops over `u32`
+//! products then fall back to pairs of `pmuludq` and shuffles. OpenCV picks AVX2 code at run
+//! time; so does [`dispatch_avx2!`]: it compiles the same portable body a second time with
+//! `#[target_feature(enable = "avx2")]` and calls that copy when `is_x86_feature_detected!`
+//! reports AVX2. Other targets (ARM on small robots) and older x86 CPUs run the portable body,
+//! which is plain safe Rust that the compiler vectorises for whatever the target has. Both
+//! copies compute in integers (or the same IEEE `f32` operations, no fused multiply–add), so
+//! their results are identical; each kernel's tests check the two against each other.
+
+/// Defines `$vis fn $name(args) -> ret` that runs `$body(args)` compiled for AVX2 when the CPU
+/// has it, and the portable `$body` otherwise. `$body` should be `#[inline(always)]` (and so
+/// should its helpers) so that all of its loops are compiled inside the AVX2 copy.
+macro_rules! dispatch_avx2 {
+    (
+        $(#[$attr:meta])*
+        $vis:vis fn $name:ident => $body:ident ( $($arg:ident : $ty:ty),* $(,)? ) -> $ret:ty
+    ) => {
+        $(#[$attr])*
+        $vis fn $name($($arg: $ty),*) -> $ret {
+            #[cfg(target_arch = "x86_64")]
+            if std::arch::is_x86_feature_detected!("avx2") {
+                /// The portable body compiled with AVX2 enabled.
+                #[target_feature(enable = "avx2")]
+                fn with_avx2($($arg: $ty),*) -> $ret {
+                    $body($($arg),*)
+                }
+                // SAFETY: the CPU supports AVX2, the only feature `with_avx2` enables.
+                #[allow(unsafe_code)]
+                return unsafe { with_avx2($($arg),*) };
+            }
+            $body($($arg),*)
+        }
+    };
+}
+
+pub(crate) use dispatch_avx2;
