@@ -2,7 +2,8 @@
 # Side-by-side benchmark of 2D lidar SLAM: slamkit's ICP-SLAM and MRPT's icp-slam (Debian package
 # mrpt-apps, run through ../shared/tools/mrpt/run-mrpt.sh) on the Freiburg benchmark logs, both
 # scored with `slamkit eval relations`; wall time, CPU time (user + sys) and peak memory from
-# /usr/bin/time.
+# /usr/bin/time; the last column is the 1-minute load average before and after the log's runs
+# (the machine is shared: compare ratios from one run, not times across runs).
 # METHOD=rbpf compares the particle filters instead (both with 10 particles, MRPT's ICP-based
 # rbpf-slam config); LOGS="aces mit-csail" runs only those logs.
 # usage: [METHOD=icp|rbpf] [LOGS="intel aces mit-csail"] scripts/bench_lidar.sh [OUTDIR]
@@ -51,12 +52,14 @@ print(f"{secs:.1f} s|{cpu:.1f} s|{mib:.0f} MiB")
 PY
 }
 
-echo "| log | slamkit $method | wall | CPU | peak | MRPT $method-slam | wall | CPU | peak | wall ratio | CPU ratio |"
-echo "|---|---|---|---|---|---|---|---|---|---|---|"
+echo "| log | slamkit $method | wall | CPU | peak | MRPT $method-slam | wall | CPU | peak | wall ratio | CPU ratio | load |"
+echo "|---|---|---|---|---|---|---|---|---|---|---|---|"
+load() { cut -d' ' -f1 /proc/loadavg; }
 for run in "${runs[@]}"; do
   IFS='|' read -r name log rel flags <<<"$run"
   [[ " $logs " == *" $name "* ]] || continue
   d=$out/$name
+  load_before=$(load)
   /usr/bin/time -v -o "$d.slamkit.time" "$slamkit" lidar "$data/$log" "${slamkit_flags[@]}" \
     --relations "$data/$rel" --out "$d/slamkit" >/dev/null 2>&1
   s_err=$(field "$(score "$data/$rel" "$d/slamkit/trajectory.tum")")
@@ -68,5 +71,5 @@ for run in "${runs[@]}"; do
   IFS='|' read -r m_wall m_cpu m_mem <<<"$(timing "$d/mrpt/time.txt")"
   ratio=$(python3 -c "print(f'{${s_wall% s}/${m_wall% s}:.2f}')")
   cpu_ratio=$(python3 -c "print(f'{${s_cpu% s}/${m_cpu% s}:.2f}')")
-  echo "| $name | $s_err | $s_wall | $s_cpu | $s_mem | $m_err | $m_wall | $m_cpu | $m_mem | $ratio | $cpu_ratio |"
+  echo "| $name | $s_err | $s_wall | $s_cpu | $s_mem | $m_err | $m_wall | $m_cpu | $m_mem | $ratio | $cpu_ratio | $load_before–$(load) |"
 done
