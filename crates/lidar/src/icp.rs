@@ -199,10 +199,19 @@ pub fn align<T: NearestNeighbours + ?Sized>(
     let mut at_threshold = 0;
     let mut converged = false;
     let mut pairs = Vec::with_capacity(source.len());
+    let mut cache = Correspondences::new(source.len());
     while iterations < config.max_iterations {
         iterations += 1;
         at_threshold += 1;
-        pair_up(source, target, &pose, max_dist, config.metric, &mut pairs);
+        pair_up(
+            source,
+            target,
+            &pose,
+            max_dist,
+            config.metric,
+            &mut pairs,
+            &mut cache,
+        );
         if pairs.len() < config.min_correspondences {
             return Err(LidarError::TooFewCorrespondences {
                 got: pairs.len(),
@@ -235,7 +244,7 @@ pub fn align<T: NearestNeighbours + ?Sized>(
     });
     Ok(IcpResult {
         target_from_source: pose,
-        goodness: goodness(source, target, &pose, max_dist),
+        goodness: matched_fraction(source, target, &pose, max_dist, &mut cache),
         iterations,
         converged,
         correspondences: pairs.len(),
@@ -265,6 +274,27 @@ pub fn goodness<T: NearestNeighbours + ?Sized>(
     matched as f64 / source.len() as f64
 }
 
+/// [`goodness`] through the correspondence cache (the same value).
+fn matched_fraction<T: NearestNeighbours + ?Sized>(
+    source: &[Point2<f64>],
+    target: &T,
+    target_from_source: &Pose2,
+    max_dist_m: f64,
+    cache: &mut Correspondences,
+) -> f64 {
+    if source.is_empty() {
+        return 0.0;
+    }
+    let matched = (0..)
+        .zip(source)
+        .filter(|(i, p)| {
+            let q = target_from_source * *p;
+            cache.nearest(*i, &q, target, max_dist_m).is_some()
+        })
+        .count();
+    matched as f64 / source.len() as f64
+}
+
 /// Pairs each source point with its nearest target point within `max_dist_m`.
 fn pair_up<T: NearestNeighbours + ?Sized>(
     source: &[Point2<f64>],
@@ -273,19 +303,97 @@ fn pair_up<T: NearestNeighbours + ?Sized>(
     max_dist_m: f64,
     metric: IcpMetric,
     pairs: &mut Vec<Pair>,
+    cache: &mut Correspondences,
 ) {
     pairs.clear();
-    pairs.extend(source.iter().filter_map(|p| {
-        let nn = target.nearest_within(&(pose * p), max_dist_m)?;
+    pairs.extend((0..).zip(source).filter_map(|(i, p)| {
+        let nearest = cache.nearest(i, &(pose * p), target, max_dist_m)?;
         Some(Pair {
             source: *p,
-            target: *target.point(nn.index)?,
+            target: *target.point(nearest)?,
             normal: match metric {
-                IcpMetric::PointToLine => target.normal(nn.index),
+                IcpMetric::PointToLine => target.normal(nearest),
                 IcpMetric::PointToPoint => None,
             },
         })
     }));
+}
+
+/// Safety margin of the correspondence cache's reuse test against rounding in the distances
+/// (far above it: coordinates of kilometres have rounding errors near 10⁻¹³ m) \[m\].
+const REUSE_GUARD_M: f64 = 1e-9;
+
+/// The last nearest-neighbour query of each source point, reused while the point has moved too
+/// little for the answer to change. A query at `q` returned the nearest target point `j` (or
+/// none) and a clearance `c`: every other target point is at least `c` from `q`
+/// ([`NearestNeighbours::nearest_within_clear`]). At `q'`, `m = |q' − q|` away, the others are
+/// at least `c − m` away; when that exceeds `|q' − t_j|`, `t_j` is still the strict nearest
+/// (or, with no `j`, when it exceeds the radius, nothing is within it), so the answer for any
+/// radius is known without a query: exactly the pairs a fresh search gives. As ICP converges,
+/// steps shrink below a millimetre and most points keep their pair.
+struct Correspondences {
+    /// Per source point, its last query.
+    last: Vec<Option<Query>>,
+}
+
+/// One nearest-neighbour query and its answer.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Query {
+    /// Where the point was.
+    at: Point2<f64>,
+    /// The nearest target point within the radius.
+    nearest: Option<usize>,
+    /// Every other target point is at least this far from `at` \[m\].
+    clear_m: f64,
+}
+
+impl Correspondences {
+    fn new(points: usize) -> Self {
+        Self {
+            last: vec![None; points],
+        }
+    }
+
+    /// The nearest target point within `max_dist_m` of `q`, source point `i` moved there.
+    fn nearest<T: NearestNeighbours + ?Sized>(
+        &mut self,
+        i: usize,
+        q: &Point2<f64>,
+        target: &T,
+        max_dist_m: f64,
+    ) -> Option<usize> {
+        let Some(slot) = self.last.get_mut(i) else {
+            return target.nearest_within(q, max_dist_m).map(|n| n.index);
+        };
+        if let Some(Query {
+            at,
+            nearest,
+            clear_m,
+        }) = *slot
+        {
+            // Every other target point is farther than this from `q`.
+            let others = clear_m - (q - at).norm() - REUSE_GUARD_M;
+            match nearest.and_then(|j| Some((j, target.point(j)?))) {
+                Some((j, p)) => {
+                    let d2 = (p - q).norm_squared();
+                    if d2 < others * others && others > 0.0 {
+                        // Same test as the search: within the radius, squared.
+                        return (d2 <= max_dist_m * max_dist_m).then_some(j);
+                    }
+                }
+                None if nearest.is_none() && max_dist_m < others => return None,
+                None => {}
+            }
+        }
+        let (found, clear_m) = target.nearest_within_clear(q, max_dist_m);
+        let nearest = found.map(|n| n.index);
+        *slot = Some(Query {
+            at: *q,
+            nearest,
+            clear_m,
+        });
+        nearest
+    }
 }
 
 /// Residual of a pair at `pose`: `(n·(q − m), 0)` with a normal, `q − m` without.

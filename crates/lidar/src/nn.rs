@@ -17,6 +17,26 @@ pub trait NearestNeighbours {
     /// the query is not finite.
     fn nearest_within(&self, query: &Point2<f64>, max_dist_m: f64) -> Option<Neighbour>;
 
+    /// [`NearestNeighbours::nearest_within`], and a clearance `c`: every indexed point other
+    /// than the one returned (every point, when none is) is at least `c` from `query`. A query
+    /// moved by `m` then has the same answer while the others stay farther than the nearest:
+    /// see [`crate::icp`]'s correspondence cache. The default gives the clearance the answer
+    /// alone implies.
+    fn nearest_within_clear(
+        &self,
+        query: &Point2<f64>,
+        max_dist_m: f64,
+    ) -> (Option<Neighbour>, f64) {
+        let nearest = self.nearest_within(query, max_dist_m);
+        let usable = query.x.is_finite() && query.y.is_finite() && max_dist_m >= 0.0;
+        let clear = match nearest {
+            Some(n) => n.distance_m,
+            None if usable => max_dist_m,
+            None => 0.0,
+        };
+        (nearest, clear)
+    }
+
     /// The points, in the order given.
     fn points(&self) -> &[Point2<f64>];
 

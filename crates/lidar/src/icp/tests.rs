@@ -224,3 +224,40 @@ fn config_round_trips_through_toml_text() {
     assert_eq!(config.max_iterations, IcpConfig::default().max_iterations);
     assert!(toml::from_str::<IcpConfig>("bogus = 1").is_err());
 }
+
+#[test]
+fn correspondence_cache_gives_the_fresh_answers() {
+    // Target: a room scan on the grid (the ICP-SLAM case) and on the k-d tree (default
+    // clearance). Queries drift in small and large steps, as ICP's do, under shrinking radii.
+    let (source, kd, _) = fixture(Pose2::identity(), Pose2::new(Vector2::new(0.1, 0.0), 0.02));
+    let grid = GridIndex::new(kd.points().to_vec(), Some(kd.normals().to_vec()), 0.1);
+    let mut rng = ChaCha8Rng::seed_from_u64(21);
+    for (target, is_grid) in [(&grid as &dyn NearestNeighbours, true), (&kd, false)] {
+        let mut cache = Correspondences::new(source.len());
+        let mut pose = Pose2::new(Vector2::new(0.05, -0.03), 0.01);
+        let (mut queries, mut fresh_queries) = (0, 0);
+        for step in 0..60 {
+            let radius = 0.3 * 0.97f64.powi(step);
+            let size = if step % 3 == 0 { 1e-2 } else { 1e-4 };
+            let motion = Vector3::new(
+                rng.gen_range(-size..size),
+                rng.gen_range(-size..size),
+                rng.gen_range(-size..size) * 0.1,
+            );
+            pose = exp_step(&motion) * pose;
+            for (i, p) in source.iter().enumerate() {
+                let q = pose * p;
+                let before = cache.last[i];
+                let cached = cache.nearest(i, &q, target, radius);
+                let fresh = target.nearest_within(&q, radius).map(|n| n.index);
+                assert_eq!(cached, fresh, "point {i} step {step}");
+                queries += 1;
+                fresh_queries += usize::from(cache.last[i] != before);
+            }
+        }
+        // The grid's clearances let most small steps reuse the answer.
+        if is_grid {
+            assert!(fresh_queries * 2 < queries, "{fresh_queries} of {queries}");
+        }
+    }
+}

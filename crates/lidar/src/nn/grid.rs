@@ -152,9 +152,8 @@ impl GridIndex {
         self.cell_m
     }
 
-    /// Checks the points of cells `i0..=i1` of row `j` (clipped to the grid) against `best`:
-    /// squared distance and position in `sorted` (`NONE` before any point is found).
-    fn scan_row(&self, q: &Point2<f64>, j: i64, i0: i64, i1: i64, best: &mut (f64, usize)) {
+    /// Checks the points of cells `i0..=i1` of row `j` (clipped to the grid) against `found`.
+    fn scan_row(&self, q: &Point2<f64>, j: i64, i0: i64, i1: i64, found: &mut Found) {
         let (w, h) = (self.width as i64, self.height as i64);
         let (i0, i1) = (i0.max(0), i1.min(w - 1));
         if j < 0 || j >= h || i0 > i1 {
@@ -173,8 +172,14 @@ impl GridIndex {
         };
         for (at, p) in (start..).zip(pts) {
             let d2 = (p - q).norm_squared();
-            if d2 < best.0 || (d2 == best.0 && best.1 == NONE) {
-                *best = (d2, at);
+            if d2 < found.best_d2 || (d2 == found.best_d2 && found.best == NONE) {
+                if found.best != NONE && found.best_d2 < found.other_d2 {
+                    found.other_d2 = found.best_d2;
+                }
+                found.best_d2 = d2;
+                found.best = at;
+            } else if d2 < found.other_d2 {
+                found.other_d2 = d2;
             }
         }
     }
@@ -182,6 +187,16 @@ impl GridIndex {
 
 /// No point found yet.
 const NONE: usize = usize::MAX;
+
+/// The state of a query: the nearest point so far and how close the others come.
+struct Found {
+    /// Squared distance of the nearest point so far (the squared radius before any).
+    best_d2: f64,
+    /// Its position in `sorted` (`NONE` before any point is found).
+    best: usize,
+    /// Smallest squared distance of the other points read so far.
+    other_d2: f64,
+}
 
 /// `v.floor() as i64` (for `|v|` below 2⁵³), without the library call `floor` compiles to on
 /// baseline x86-64 (a tenth of the query time went there).
@@ -196,12 +211,28 @@ fn floor_i64(v: f64) -> i64 {
 
 impl NearestNeighbours for GridIndex {
     fn nearest_within(&self, query: &Point2<f64>, max_dist_m: f64) -> Option<Neighbour> {
+        self.nearest_within_clear(query, max_dist_m).0
+    }
+
+    fn nearest_within_clear(
+        &self,
+        query: &Point2<f64>,
+        max_dist_m: f64,
+    ) -> (Option<Neighbour>, f64) {
         let far = |v: f64| v.is_nan() || v.abs() > MAX_COORDINATE_M;
         if self.sorted.is_empty() || far(query.x) || far(query.y) {
-            return None;
+            // No indexed point at all, or a query no clearance is given for.
+            return (
+                None,
+                if self.sorted.is_empty() {
+                    f64::INFINITY
+                } else {
+                    0.0
+                },
+            );
         }
         if max_dist_m.is_nan() || max_dist_m < 0.0 {
-            return None;
+            return (None, 0.0);
         }
         let ((ci, cj), f) = self.cell_coords(query);
         let (fx, fy) = (f.x - ci as f64, f.y - cj as f64);
@@ -211,44 +242,50 @@ impl NearestNeighbours for GridIndex {
         let inner = smaller(smaller(fx, 1.0 - fx), smaller(fy, 1.0 - fy));
         let inner = if inner > 0.0 { inner } else { 0.0 };
         let limit = max_dist_m.min(f64::MAX);
-        let mut best = (limit * limit, NONE);
+        let mut found = Found {
+            best_d2: limit * limit,
+            best: NONE,
+            other_d2: f64::INFINITY,
+        };
         let (w, h) = (self.width as i64, self.height as i64);
         // Rings nearer than this hold no cell of the grid.
         let mut k = [0, -ci, ci - (w - 1), -cj, cj - (h - 1)]
             .into_iter()
             .max()
             .unwrap_or(0);
-        loop {
+        // Every point not read yet is at least this far from the query.
+        let unread = loop {
             // Every cell of ring k or beyond is at least this far from the query.
             let ring_min = if k == 0 {
                 0.0
             } else {
                 ((k - 1) as f64 + inner) * self.cell_m
             };
-            if ring_min * ring_min > best.0 {
-                break;
+            if ring_min * ring_min > found.best_d2 {
+                break ring_min;
             }
             if k == 0 {
-                self.scan_row(query, cj, ci, ci, &mut best);
+                self.scan_row(query, cj, ci, ci, &mut found);
             } else {
-                self.scan_row(query, cj - k, ci - k, ci + k, &mut best);
-                self.scan_row(query, cj + k, ci - k, ci + k, &mut best);
+                self.scan_row(query, cj - k, ci - k, ci + k, &mut found);
+                self.scan_row(query, cj + k, ci - k, ci + k, &mut found);
                 for j in (cj - k + 1).max(0)..=(cj + k - 1).min(h - 1) {
-                    self.scan_row(query, j, ci - k, ci - k, &mut best);
-                    self.scan_row(query, j, ci + k, ci + k, &mut best);
+                    self.scan_row(query, j, ci - k, ci - k, &mut found);
+                    self.scan_row(query, j, ci + k, ci + k, &mut found);
                 }
             }
             let covers_grid = ci - k <= 0 && cj - k <= 0 && ci + k >= w - 1 && cj + k >= h - 1;
             if covers_grid {
-                break;
+                break f64::INFINITY;
             }
             k += 1;
-        }
-        let (d2, at) = best;
-        Some(Neighbour {
-            index: *self.sorted_ids.get(at)? as usize,
-            distance_m: d2.sqrt(),
-        })
+        };
+        let clear = found.other_d2.sqrt().min(unread);
+        let nearest = self.sorted_ids.get(found.best).map(|&id| Neighbour {
+            index: id as usize,
+            distance_m: found.best_d2.sqrt(),
+        });
+        (nearest, clear)
     }
 
     fn points(&self) -> &[Point2<f64>] {
@@ -368,6 +405,47 @@ mod tests {
         assert!(empty
             .nearest_within(&Point2::origin(), f64::INFINITY)
             .is_none());
+    }
+
+    #[test]
+    fn clearance_bounds_every_other_point() {
+        let mut rng = ChaCha8Rng::seed_from_u64(13);
+        let pts: Vec<Point2<f64>> = (0..300)
+            .map(|_| Point2::new(rng.gen_range(-4.0..4.0), rng.gen_range(-2.0..2.0)))
+            .collect();
+        for cell in [0.05, 0.1, 0.4] {
+            let grid = GridIndex::new(pts.clone(), None, cell);
+            let mut clear_sum = 0.0;
+            for _ in 0..400 {
+                let q = Point2::new(rng.gen_range(-5.0..5.0), rng.gen_range(-3.0..3.0));
+                let r = rng.gen_range(0.0..0.5);
+                let (nearest, clear) = grid.nearest_within_clear(&q, r);
+                assert_eq!(nearest, grid.nearest_within(&q, r));
+                let skip = nearest.map(|n| n.index);
+                for (i, p) in pts.iter().enumerate() {
+                    if Some(i) != skip {
+                        assert!((p - q).norm() >= clear - 1e-12, "{q:?} r {r} point {i}");
+                    }
+                }
+                if let Some(n) = nearest {
+                    assert!(clear >= n.distance_m);
+                } else {
+                    assert!(clear >= r);
+                }
+                clear_sum += clear;
+            }
+            // The clearance is a useful bound, not zero.
+            assert!(
+                clear_sum / 400.0 > 0.05,
+                "cell {cell}: {}",
+                clear_sum / 400.0
+            );
+        }
+        let empty = GridIndex::new(Vec::new(), None, 0.1);
+        assert_eq!(
+            empty.nearest_within_clear(&Point2::origin(), 1.0).1,
+            f64::INFINITY
+        );
     }
 
     #[test]
