@@ -5,8 +5,8 @@
 //! non-maximum suppression keeps corners whose score beats all 8 neighbours.
 //!
 //! Rows are processed in chunks of 32 pixels with lane-wise (vectorised) arithmetic, as OpenCV's
-//! SIMD FAST: the four compass pixels first (any 9-arc contains an element of each opposite
-//! pair, so both pairs must pass), which rejects most chunks; then the full segment test
+//! SIMD FAST: any 9-arc contains a pixel of each of the 8 opposite pairs, so the four compass
+//! pixels first, then all 8 pairs, reject most chunks; then the full segment test
 //! counts, per lane, the run of consecutive brighter (darker) circle pixels over 25 steps
 //! around the circle. Only corners get a score, from sliding minima over the circle.
 
@@ -53,6 +53,7 @@ dispatch_avx2! {
 /// Pixels tested together.
 const LANES: usize = 32;
 type Lanes = [u8; LANES];
+const ZERO: Lanes = [0; LANES];
 
 #[inline(always)]
 fn fast9_portable(img: &GrayImage, threshold: u8, border: usize, nonmax: bool) -> Vec<FastCorner> {
@@ -77,7 +78,11 @@ fn fast9_portable(img: &GrayImage, threshold: u8, border: usize, nonmax: bool) -
             });
             // chunks that would run past the image (last rows) are copied, zero-padded
             let chunks: [&Lanes; 17] = if c0 + reach <= data.len() {
-                starts.map(|s| as_lanes(&data[s..]))
+                let mut chunks = [&ZERO; 17];
+                for (c, &s) in chunks.iter_mut().zip(&starts) {
+                    *c = as_lanes(&data[s..]);
+                }
+                chunks
             } else {
                 for (t, &s) in tail.iter_mut().zip(&starts) {
                     *t = load(data, s);
@@ -131,7 +136,6 @@ fn fast9_portable(img: &GrayImage, threshold: u8, border: usize, nonmax: bool) -
 /// The first `LANES` pixels of `s` (which the caller makes at least that long).
 #[inline(always)]
 fn as_lanes(s: &[u8]) -> &Lanes {
-    const ZERO: Lanes = [0; LANES];
     s.get(..LANES)
         .and_then(|s| <&Lanes>::try_from(s).ok())
         .unwrap_or(&ZERO)
@@ -163,12 +167,23 @@ fn bits(m: &[bool; LANES]) -> u32 {
 fn segment_test(centre: &Lanes, ring: &[&Lanes; 16], t: u8) -> u32 {
     let hi = centre.map(|v| v.saturating_add(t));
     let lo = centre.map(|v| v.saturating_sub(t));
-    // compass pixels 0, 4, 8, 12: both opposite pairs must have a brighter (darker) pixel
+    // Any 9-arc holds one pixel of every opposite pair (k, k + 8): the compass pairs first
+    // (which reject most chunks), then the other six.
     let mut pass = [false; LANES];
     for (i, p) in pass.iter_mut().enumerate() {
-        let b = |k: usize| ring[k][i] > hi[i];
-        let d = |k: usize| ring[k][i] < lo[i];
-        *p = ((b(0) | b(8)) & (b(4) | b(12))) | ((d(0) | d(8)) & (d(4) | d(12)));
+        let b = |k: usize| (ring[k][i] > hi[i]) | (ring[k + 8][i] > hi[i]);
+        let d = |k: usize| (ring[k][i] < lo[i]) | (ring[k + 8][i] < lo[i]);
+        *p = (b(0) & b(4)) | (d(0) & d(4));
+    }
+    if bits(&pass) == 0 {
+        return 0;
+    }
+    for (i, p) in pass.iter_mut().enumerate() {
+        let b = |k: usize| (ring[k][i] > hi[i]) | (ring[k + 8][i] > hi[i]);
+        let d = |k: usize| (ring[k][i] < lo[i]) | (ring[k + 8][i] < lo[i]);
+        let bright = b(0) & b(1) & b(2) & b(3) & b(4) & b(5) & b(6) & b(7);
+        let dark = d(0) & d(1) & d(2) & d(3) & d(4) & d(5) & d(6) & d(7);
+        *p = bright | dark;
     }
     if bits(&pass) == 0 {
         return 0;

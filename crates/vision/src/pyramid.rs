@@ -8,8 +8,13 @@ use slamkit_core::image::{GrayImage, Image};
 use crate::border::{pad_row, reflect101};
 use crate::simd::dispatch_avx2;
 
-/// Halves an image as `cv::pyrDown`: output `⌈w/2⌉ × ⌈h/2⌉`, reflect-101 border, rounded.
-pub fn pyr_down(img: &GrayImage) -> GrayImage {
+dispatch_avx2! {
+    /// Halves an image as `cv::pyrDown`: output `⌈w/2⌉ × ⌈h/2⌉`, reflect-101 border, rounded.
+    pub fn pyr_down => pyr_down_portable(img: &GrayImage) -> GrayImage
+}
+
+#[inline(always)]
+fn pyr_down_portable(img: &GrayImage) -> GrayImage {
     let (w, h) = (img.width(), img.height());
     let (dw, dh) = (w.div_ceil(2), h.div_ceil(2));
     if w == 0 || h == 0 {
@@ -157,6 +162,22 @@ mod tests {
         assert_eq!(d.data(), &[12, 32, 52]);
         let c = Image::filled(7, 6, 200u8);
         assert_eq!(pyr_down(&c), Image::filled(4, 3, 200u8));
+    }
+
+    /// The AVX2 build equals the portable one (odd and even sizes).
+    #[test]
+    fn pyr_down_builds_agree() {
+        for (w, h) in [(53, 37), (64, 48), (7, 3)] {
+            let img = Image::from_vec(
+                w,
+                h,
+                (0..(w * h) as u32)
+                    .map(|i| (i.wrapping_mul(2_654_435_761) >> 24) as u8)
+                    .collect(),
+            )
+            .unwrap();
+            assert_eq!(pyr_down(&img), pyr_down_portable(&img), "{w}x{h}");
+        }
     }
 
     #[test]

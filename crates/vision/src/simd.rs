@@ -10,21 +10,22 @@
 //! copies compute in integers (or the same IEEE `f32` operations, no fused multiply–add), so
 //! their results are identical; each kernel's tests check the two against each other.
 
-/// Defines `$vis fn $name(args) -> ret` that runs `$body(args)` compiled for AVX2 when the CPU
+/// Defines `$vis fn $name<T: Bound>(args) -> ret` (generics optional) that runs `$body(args)` compiled for AVX2 when the CPU
 /// has it, and the portable `$body` otherwise. `$body` should be `#[inline(always)]` (and so
 /// should its helpers) so that all of its loops are compiled inside the AVX2 copy.
 macro_rules! dispatch_avx2 {
     (
         $(#[$attr:meta])*
-        $vis:vis fn $name:ident => $body:ident ( $($arg:ident : $ty:ty),* $(,)? ) -> $ret:ty
+        $vis:vis fn $name:ident $(<$($gen:ident : $bound:path),+>)?
+            => $body:ident ( $($arg:ident : $ty:ty),* $(,)? ) -> $ret:ty
     ) => {
         $(#[$attr])*
-        $vis fn $name($($arg: $ty),*) -> $ret {
+        $vis fn $name $(<$($gen: $bound),+>)? ($($arg: $ty),*) -> $ret {
             #[cfg(target_arch = "x86_64")]
             if std::arch::is_x86_feature_detected!("avx2") {
                 /// The portable body compiled with AVX2 enabled.
                 #[target_feature(enable = "avx2")]
-                fn with_avx2($($arg: $ty),*) -> $ret {
+                fn with_avx2 $(<$($gen: $bound),+>)? ($($arg: $ty),*) -> $ret {
                     $body($($arg),*)
                 }
                 // SAFETY: the CPU supports AVX2, the only feature `with_avx2` enables.
