@@ -73,7 +73,9 @@ enum DepthSource {
 pub struct Features {
     /// Pixel positions in the tracked image.
     pub pixels: Vec<Point2<f64>>,
-    /// Camera-frame positions \[m\]; `None` without depth.
+    /// Camera-frame positions \[m\]; `None` without depth. Empty when lifted on demand: the
+    /// KLT corners of an RGB-D frame, most of which never join the reference (the tracker
+    /// lifts those that do with [`PreparedFrame::lift`]).
     pub points: Vec<Option<Point3<f64>>>,
     /// ORB descriptors (empty for the KLT front end).
     pub descriptors: Vec<Descriptor>,
@@ -235,7 +237,10 @@ impl Preprocessor {
                 (px, Vec::new())
             }
         };
-        let points = frame.lift(&pixels, &self.config)?;
+        let points = match (&frame.depth, &self.orb) {
+            (DepthSource::Image(_) | DepthSource::Registered(_), None) => Vec::new(),
+            _ => frame.lift(&pixels, &self.config)?,
+        };
         frame.features = Features {
             pixels,
             points,
@@ -323,11 +328,7 @@ impl PreparedFrame {
                 }
                 out
             }
-            (DepthSource::Registered(depth), Some(color)) => depth
-                .samples(4, &config.depth)
-                .into_iter()
-                .filter_map(|(p, (u, v))| Some((p, *color.get(u, v)?)))
-                .unzip(),
+            (DepthSource::Registered(depth), Some(color)) => depth.samples(4, color, &config.depth),
             _ => {
                 let f = &self.features;
                 f.points

@@ -8,6 +8,7 @@
 //!   stereo depth comes from `slamkit_vision::stereo`.
 //! * [`registration`]: depth of an unregistered RGB-D pair read in the colour camera at the
 //!   features only.
+//! * [`spacing`]: minimum distance between features, on a grid.
 //! * [`motion`]: RANSAC over 3-point Horn samples, inlier refit and Gauss–Newton refinement on
 //!   reprojection error.
 //! * [`odometry`]: frame-to-frame or local-map tracking, failed frames keeping the reference.
@@ -27,6 +28,7 @@ pub mod motion;
 pub mod odometry;
 pub mod pipeline;
 pub mod registration;
+pub mod spacing;
 pub mod voxel_map;
 
 pub use config::{FrontendKind, TrackingMode, VoConfig};

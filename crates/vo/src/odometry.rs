@@ -19,6 +19,7 @@ use crate::config::{FrontendKind, TrackingMode, VoConfig};
 use crate::frame::PreparedFrame;
 use crate::local_map::{project, LocalMap, MergeConfig, Observation, Seen};
 use crate::motion::{estimate_motion, Correspondence, MotionFailure};
+use crate::spacing::SpacingGrid;
 
 /// A reference feature matched in the current frame: the descriptor to refresh it with, its
 /// pixel and (when known) its 3D position in the current frame.
@@ -192,7 +193,13 @@ impl Odometry {
         }
     }
 
-    fn initialise(&mut self, frame: PreparedFrame) -> FrameStatus {
+    fn initialise(&mut self, mut frame: PreparedFrame) -> FrameStatus {
+        if frame.features.points.is_empty() {
+            match frame.lift(&frame.features.pixels, &self.config) {
+                Ok(points) => frame.features.points = points,
+                Err(reason) => return self.skip(reason),
+            }
+        }
         let with_depth = frame.features.points.iter().flatten().count();
         if with_depth < self.config.motion.min_inliers {
             return self.skip(FailReason::TooFewFeatures { with_depth });
@@ -395,30 +402,10 @@ impl Odometry {
                 landmark: c.landmark,
             })
             .collect();
-        let min_d2 = f64::from(self.config.shi_tomasi.min_distance_px).powi(2);
-        let is_orb = self.config.frontend == FrontendKind::Orb;
-        let f = &frame.features;
-        for (i, (px, p)) in f.pixels.iter().zip(&f.points).enumerate() {
-            if !is_orb && features.len() >= self.config.max_features {
-                break;
-            }
-            let Some(point) = p else { continue };
-            let descriptor = f.descriptors.get(i).copied();
-            let duplicate = if is_orb {
-                kept.iter().any(|c| c.pixel == *px)
-            } else {
-                features
-                    .iter()
-                    .any(|g| (g.pixel - px).norm_squared() < min_d2)
-            };
-            if !duplicate {
-                features.push(RefFeature {
-                    pixel: *px,
-                    point: *point,
-                    descriptor,
-                    landmark: None,
-                });
-            }
+        if frame.features.points.is_empty() {
+            self.top_up_lazily(&frame, &mut features);
+        } else {
+            self.top_up(&frame, &mut features, kept);
         }
         if self.config.mode == TrackingMode::LocalMap {
             self.update_map(&mut features, &frame);
@@ -428,6 +415,81 @@ impl Odometry {
             pyramid: frame.pyramid,
             features,
         });
+    }
+
+    /// Appends the frame's lifted features to `features`: ORB features not among the kept
+    /// matches; KLT corners, strongest first, at least `min_distance_px` from every feature
+    /// already there, up to `max_features`.
+    fn top_up(&self, frame: &PreparedFrame, features: &mut Vec<RefFeature>, kept: &[Candidate]) {
+        let is_orb = self.config.frontend == FrontendKind::Orb;
+        let mut spacing = self.spacing(frame, features);
+        let f = &frame.features;
+        for (i, (px, p)) in f.pixels.iter().zip(&f.points).enumerate() {
+            if !is_orb && features.len() >= self.config.max_features {
+                break;
+            }
+            let Some(point) = p else { continue };
+            let duplicate = if is_orb {
+                kept.iter().any(|c| c.pixel == *px)
+            } else {
+                spacing.is_near(px)
+            };
+            if !duplicate {
+                spacing.insert(*px);
+                features.push(RefFeature {
+                    pixel: *px,
+                    point: *point,
+                    descriptor: f.descriptors.get(i).copied(),
+                    landmark: None,
+                });
+            }
+        }
+    }
+
+    /// [`Odometry::top_up`] for KLT corners not lifted yet: the same corners are chosen, but
+    /// only those that can still join are lifted, in batches of the free places (a lifting
+    /// error leaves the reference with the features it has).
+    fn top_up_lazily(&self, frame: &PreparedFrame, features: &mut Vec<RefFeature>) {
+        let max = self.config.max_features;
+        let mut spacing = self.spacing(frame, features);
+        let mut corners = frame.features.pixels.iter();
+        while features.len() < max {
+            let batch: Vec<Point2<f64>> = corners
+                .by_ref()
+                .filter(|px| !spacing.is_near(px))
+                .take(max - features.len())
+                .copied()
+                .collect();
+            if batch.is_empty() {
+                return;
+            }
+            let Ok(points) = frame.lift(&batch, &self.config) else {
+                return;
+            };
+            for (px, p) in batch.into_iter().zip(points) {
+                let Some(point) = p else { continue };
+                if features.len() < max && !spacing.is_near(&px) {
+                    spacing.insert(px);
+                    features.push(RefFeature {
+                        pixel: px,
+                        point,
+                        descriptor: None,
+                        landmark: None,
+                    });
+                }
+            }
+        }
+    }
+
+    /// The pixels of `features` in a grid for the `min_distance_px` check.
+    fn spacing(&self, frame: &PreparedFrame, features: &[RefFeature]) -> SpacingGrid {
+        let min_distance = f64::from(self.config.shi_tomasi.min_distance_px);
+        let k = &frame.camera;
+        let mut grid = SpacingGrid::new(min_distance, k.width, k.height);
+        for f in features {
+            grid.insert(f.pixel);
+        }
+        grid
     }
 
     /// Key frames enter the map ([`LocalMap::add_keyframe`]), each observation weighted by
@@ -475,3 +537,6 @@ impl Odometry {
         self.map.prune(index, lm.window_frames, lm.max_landmarks);
     }
 }
+
+#[cfg(test)]
+mod tests;

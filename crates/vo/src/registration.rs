@@ -6,8 +6,8 @@
 //! colour intrinsics; a colour pixel keeps the nearest of the depths landing on it (a z-buffer),
 //! and an empty pixel whose left/right or up/down neighbours agree within 5 % takes the nearer
 //! of them (the one-pixel cracks a magnifying warp leaves). A feature needs that image on its
-//! 3×3 neighbourhood only ([`crate::depth`]), which depends on the unfilled z-buffer on the 5×5
-//! block around it.
+//! 3×3 neighbourhood only ([`crate::depth`]), which depends on the unfilled z-buffer there and,
+//! where a pixel of it is empty, on the ring of pixels around it.
 //!
 //! Which depth pixels can land on a block is known without projecting them all: a pixel's
 //! colour column depends on its depth column and depth only, its colour row on its depth row
@@ -22,7 +22,7 @@
 
 use nalgebra::{Point2, Point3};
 use slamkit_core::camera::Intrinsics;
-use slamkit_core::image::Image;
+use slamkit_core::image::{Image, RgbImage};
 
 use crate::depth::{depth_of_patch, DepthConfig, DepthRegistration};
 
@@ -108,13 +108,15 @@ impl RegisteredDepth {
         ))
     }
 
-    /// The unfilled z-buffer on the 5×5 block of colour pixels centred on `(x0, y0)`
-    /// (`INFINITY` where nothing lands or outside the image).
-    fn block(&self, x0: usize, y0: usize) -> [[f32; 5]; 5] {
+    /// The unfilled z-buffer on the colour pixels within `radius` (1 or 2) of `(x0, y0)`, in
+    /// a 5×5 block centred there (`INFINITY` where nothing lands, outside the radius or outside
+    /// the image).
+    fn block(&self, x0: usize, y0: usize, radius: usize) -> [[f32; 5]; 5] {
         let mut block = [[f32::INFINITY; 5]; 5];
         let (w, h) = (self.depth.width(), self.depth.height());
-        let (ua, ub) = (x0.saturating_sub(2), (x0 + 2).min(w - 1));
-        let (va, vb) = (y0.saturating_sub(2), (y0 + 2).min(h - 1));
+        let r = radius.min(2);
+        let (ua, ub) = (x0.saturating_sub(r), (x0 + r).min(w - 1));
+        let (va, vb) = (y0.saturating_sub(r), (y0 + r).min(h - 1));
         let Some(xs) = hull(self.column_candidates.get(ua..=ub)) else {
             return block;
         };
@@ -153,7 +155,14 @@ impl RegisteredDepth {
             return None;
         }
         let (x0, y0) = (x as usize, y as usize);
-        let block = self.block(x0, y0);
+        // the 3×3 neighbourhood first; its empty pixels may be filled from the ring around it
+        let mut block = self.block(x0, y0, 1);
+        if block[1..4]
+            .iter()
+            .any(|line| line[1..4].iter().any(|z| z.is_infinite()))
+        {
+            block = self.block(x0, y0, 2);
+        }
         let mut patch = [[0f32; 3]; 3];
         for (dy, line) in patch.iter_mut().enumerate() {
             for (dx, cell) in line.iter_mut().enumerate() {
@@ -164,30 +173,39 @@ impl RegisteredDepth {
     }
 
     /// Points for the world map: every `step`-th depth pixel with a depth in the configured
-    /// range, in the colour camera, with the colour pixel it projects to (pixels projecting
-    /// outside the colour image are left out).
-    pub fn samples(&self, step: usize, config: &DepthConfig) -> Vec<(Point3<f64>, (usize, usize))> {
-        let (w, h) = (self.depth.width(), self.depth.height());
-        let [tx, ty, tz] = self.translation;
-        let mut out = Vec::new();
-        for y in (0..h).step_by(step.max(1)) {
-            for x in (0..w).step_by(step.max(1)) {
-                let Some(&d) = self.depth.get(x, y) else {
-                    continue;
-                };
+    /// range, in the colour camera, with the colour of the pixel of `color` it lands on in the
+    /// warp (pixels landing outside the colour image are left out).
+    pub fn samples(
+        &self,
+        step: usize,
+        color: &RgbImage,
+        config: &DepthConfig,
+    ) -> (Vec<Point3<f64>>, Vec<[u8; 3]>) {
+        let (w, h, step) = (self.depth.width(), self.depth.height(), step.max(1));
+        let (k, [tx, ty, tz]) = (&self.depth_k, self.translation);
+        // normalised coordinates and warp factors of the sampled columns
+        let columns: Vec<(f64, f64)> = (0..w)
+            .step_by(step)
+            .filter_map(|x| Some(((x as f64 - k.cx) / k.fx, *self.columns.get(x)?)))
+            .collect();
+        let capacity = columns.len() * h.div_ceil(step);
+        let mut out = (Vec::with_capacity(capacity), Vec::with_capacity(capacity));
+        for y in (0..h).step_by(step) {
+            let (Some(row), Some(&fy_ny)) = (self.depth.row(y), self.rows.get(y)) else {
+                continue;
+            };
+            let ny = (y as f64 - k.cy) / k.fy;
+            for (&d, &(nx, fx_nx)) in row.iter().step_by(step).zip(&columns) {
                 let z = f64::from(d);
                 if !(z >= config.min_depth_m && z <= config.max_depth_m) {
                     continue;
                 }
-                let p = crate::depth::lift(&self.depth_k, Point2::new(x as f64, y as f64), z);
-                let p = Point3::new(p.x + tx, p.y + ty, p.z + tz);
-                if p.z <= 0.0 {
+                let Some((u, v, _)) = self.project(fx_nx, fy_ny, d) else {
                     continue;
-                }
-                let u = (self.color_k.fx * p.x / p.z + self.color_k.cx).round();
-                let v = (self.color_k.fy * p.y / p.z + self.color_k.cy).round();
-                if u >= 0.0 && v >= 0.0 && u < w as f64 && v < h as f64 {
-                    out.push((p, (u as usize, v as usize)));
+                };
+                if let Some(&c) = color.get(u, v) {
+                    out.0.push(Point3::new(nx * z + tx, ny * z + ty, z + tz));
+                    out.1.push(c);
                 }
             }
         }
@@ -196,19 +214,37 @@ impl RegisteredDepth {
 }
 
 /// The smallest and largest depth of `depth` that projects (finite, > 0, in front of the
-/// colour camera, which sits `tz` ahead), or `None` when no pixel does.
+/// colour camera, which sits `tz` ahead), or `None` when no pixel does. Independent lanes of
+/// compare-and-select, which the compiler turns into vector instructions.
 fn depth_range(depth: &Image<f32>, tz: f64) -> Option<(f32, f32)> {
+    const LANES: usize = 16;
     let floor = (-tz).max(0.0);
-    let (lo, hi) = depth
-        .data()
-        .iter()
-        .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &d| {
-            if f64::from(d) > floor && d.is_finite() {
-                (lo.min(d), hi.max(d))
-            } else {
-                (lo, hi)
-            }
-        });
+    let (mut lo, mut hi) = ([f32::INFINITY; LANES], [f32::NEG_INFINITY; LANES]);
+    let mut fold = |lane: usize, d: f32| {
+        let projects = f64::from(d) > floor && d < f32::INFINITY;
+        lo[lane] = if projects && d < lo[lane] {
+            d
+        } else {
+            lo[lane]
+        };
+        hi[lane] = if projects && d > hi[lane] {
+            d
+        } else {
+            hi[lane]
+        };
+    };
+    let chunks = depth.data().chunks_exact(LANES);
+    let rest = chunks.remainder();
+    for chunk in chunks {
+        for (lane, &d) in chunk.iter().enumerate() {
+            fold(lane, d);
+        }
+    }
+    for (lane, &d) in rest.iter().enumerate() {
+        fold(lane, d);
+    }
+    let lo = lo.iter().fold(f32::INFINITY, |a, &b| a.min(b));
+    let hi = hi.iter().fold(f32::NEG_INFINITY, |a, &b| a.max(b));
     (lo <= hi).then_some((lo, hi))
 }
 

@@ -174,7 +174,10 @@ fn a_plane_moves_by_the_baseline() {
     assert_eq!(sparse.depth_at(Point2::new(35.0, 10.0), &c), None);
     let zero = RegisteredDepth::new(Image::filled(40, 30, 0.0f32), &k(), &reg);
     assert_eq!(zero.depth_at(Point2::new(10.0, 10.0), &c), None);
-    assert!(zero.samples(1, &c).is_empty());
+    assert!(zero
+        .samples(1, &Image::filled(40, 30, [0; 3]), &c)
+        .0
+        .is_empty());
 }
 
 #[test]
@@ -231,15 +234,24 @@ fn samples_are_depth_pixels_moved_into_the_colour_camera() {
         color_from_depth_m: [-0.2, 0.0, 0.0],
     };
     let c = DepthConfig::default();
-    let samples = RegisteredDepth::new(depth, &k(), &reg).samples(4, &c);
+    // colour image: each pixel's colour is its coordinates
+    let color = Image::from_vec(
+        40,
+        30,
+        (0..40 * 30)
+            .map(|i| [(i % 40) as u8, (i / 40) as u8, 0])
+            .collect(),
+    )
+    .unwrap();
+    let (points, colors) = RegisteredDepth::new(depth, &k(), &reg).samples(4, &color, &c);
     // depth pixel (24, 16) at 2 m: (0.08, 0.02) m in the depth camera, (−0.12, 0.02) m in the
     // colour camera, seen at (50 · −0.12 / 2 + 20, 50 · 0.02 / 2 + 15) = (17, 15.5) px
-    let (p, px) = samples
+    let i = points
         .iter()
-        .find(|(p, _)| (p.x + 0.12).abs() < 1e-9 && (p.y - 0.02).abs() < 1e-9)
+        .position(|p| (p.x + 0.12).abs() < 1e-9 && (p.y - 0.02).abs() < 1e-9)
         .unwrap();
-    assert_eq!(*px, (17, 16));
-    assert!((p.z - 2.0).abs() < 1e-12);
+    assert_eq!(colors[i], [17, 16, 0]);
+    assert!((points[i].z - 2.0).abs() < 1e-12);
     // 10 × 8 grid pixels, all inside the colour image (the colour camera is wider)
-    assert_eq!(samples.len(), 80);
+    assert_eq!((points.len(), colors.len()), (80, 80));
 }
