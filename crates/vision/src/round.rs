@@ -21,10 +21,12 @@ pub(crate) fn round_to_i32(x: f32) -> i32 {
     (x + MAGIC).to_bits() as i32 - MAGIC.to_bits() as i32
 }
 
-/// `saturate_cast<uchar>(float)` of OpenCV: round half to even, clamp to 0..=255.
+/// `saturate_cast<uchar>(float)` of OpenCV: round half to even, clamp to 0..=255 (NaN gives 0).
+/// Branch-free through [`round_to_i32`], so loops over it vectorise.
 #[inline]
 pub(crate) fn round_to_u8(v: f32) -> u8 {
-    round_ties_even(v.clamp(0.0, 255.0)) as u8
+    // `max` first: it returns 0 for NaN
+    round_to_i32(v.max(0.0).min(255.0)) as u8
 }
 
 #[cfg(test)]
@@ -55,5 +57,10 @@ mod tests {
         assert_eq!(round_to_u8(300.0), 255);
         assert_eq!(round_to_u8(127.5), 128);
         assert_eq!(round_to_u8(126.5), 126);
+        assert_eq!(round_to_u8(f32::NAN), 0);
+        for v in 0..=1020 {
+            let v = v as f32 * 0.25;
+            assert_eq!(round_to_u8(v), v.round_ties_even() as u8, "{v}");
+        }
     }
 }
