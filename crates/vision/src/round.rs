@@ -24,6 +24,7 @@ pub(crate) fn round_to_i32(x: f32) -> i32 {
 /// `saturate_cast<uchar>(float)` of OpenCV: round half to even, clamp to 0..=255 (NaN gives 0).
 /// Branch-free through [`round_to_i32`], so loops over it vectorise.
 #[inline]
+#[allow(clippy::manual_clamp)] // `clamp` keeps NaN, and NaN's bits are not a grey level
 pub(crate) fn round_to_u8(v: f32) -> u8 {
     // `max` first: it returns 0 for NaN
     round_to_i32(v.max(0.0).min(255.0)) as u8
