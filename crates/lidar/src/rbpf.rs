@@ -21,6 +21,7 @@
 //! are placed by odometry, with the correction at the next update spread over them linearly.
 //! Random choices come from a seeded ChaCha8 generator, so a run is reproducible.
 
+pub mod hit_means;
 pub mod proposal;
 
 use crate::error::check_fields;
@@ -29,6 +30,7 @@ use crate::particles::{
     effective_sample_size, filter_checks, low_variance_resample, moved_enough, normalized_weights,
 };
 use crate::LidarError;
+use hit_means::HitMeans;
 use proposal::{propose, GridScorer, PreparedScan, ProposalConfig};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -183,6 +185,9 @@ impl Drop for Node {
 struct Particle {
     world_from_base: Pose2,
     grid: OccupancyGrid,
+    /// Mean beam end point of each of `grid`'s cells, what the scan matcher scores against
+    /// (empty unless `proposal.mean_hit_points`).
+    means: HitMeans,
     log_weight: f64,
     /// Sum of the log weight factors over the particle's whole ancestry, kept through
     /// resampling (GMapping's `weightSum`): picks the output trajectory.
@@ -199,6 +204,8 @@ pub struct MapMemory {
     pub unshared_bytes: usize,
     /// Bytes of one particle's grid (the best one).
     pub single_map_bytes: usize,
+    /// Bytes of all particles' mean hit points, each shared tile counted once.
+    pub hit_means_bytes: usize,
 }
 
 /// Counters over a run.
@@ -304,6 +311,11 @@ impl Rbpf {
     fn initialise(&mut self, index: usize, scan: &LaserScan) -> Option<()> {
         let mut grid = OccupancyGrid::new(self.config.grid.clone()).ok()?;
         grid.insert_scan(scan, &scan.base_from_laser).ok()?;
+        let c = &self.config.grid;
+        let mut means = HitMeans::new(grid.origin_m(), c.resolution_m, c.max_usable_range_m);
+        if self.config.proposal.mean_hit_points {
+            means.insert_scan(scan, &scan.base_from_laser);
+        }
         let node = Arc::new(Node {
             scan: index,
             world_from_base: Pose2::identity(),
@@ -312,6 +324,7 @@ impl Rbpf {
         let particle = Particle {
             world_from_base: Pose2::identity(),
             grid,
+            means,
             log_weight: 0.0,
             log_likelihood_sum: 0.0,
             node,
@@ -332,7 +345,7 @@ impl Rbpf {
         let started = Instant::now();
         let config = &self.config;
         for particle in &mut self.particles {
-            let scorer = GridScorer::new(&particle.grid, &config.proposal);
+            let scorer = GridScorer::new(&particle.grid, &particle.means, &config.proposal);
             let p = propose(
                 &scorer,
                 prepared,
@@ -352,7 +365,10 @@ impl Rbpf {
             let world_from_laser = particle.world_from_base * scan.base_from_laser;
             // A finite pose inside the addressable area always inserts; a failure leaves the
             // particle's map as it was.
-            let _ = particle.grid.insert_scan(scan, &world_from_laser);
+            let inserted = particle.grid.insert_scan(scan, &world_from_laser).is_ok();
+            if inserted && config.proposal.mean_hit_points {
+                particle.means.insert_scan(scan, &world_from_laser);
+            }
             particle.node = Arc::new(Node {
                 scan: index,
                 world_from_base: particle.world_from_base,
@@ -439,6 +455,7 @@ impl Rbpf {
                 .map(|p| p.grid.tile_stats().bytes)
                 .sum(),
             single_map_bytes: self.best().map_or(0, |p| p.grid.tile_stats().bytes),
+            hit_means_bytes: HitMeans::shared_bytes(self.particles.iter().map(|p| &p.means)),
         }
     }
 

@@ -6,8 +6,10 @@
 //! The observation likelihood is a local likelihood field read straight off the particle's grid,
 //! as GMapping's `ScanMatcher::score`: for each beam end point the nearest occupied cell within
 //! `kernel_cells` is found, requiring the cell one step back along the beam (at the same offset)
-//! not to be occupied, so a wall is matched from the side the laser saw it. Its distance `d`
-//! scores `ln(z_hit·N(d; 0, σ²) + z_rand/z_max)` (Thrun et al., *Probabilistic Robotics*,
+//! not to be occupied, so a wall is matched from the side the laser saw it. The distance `d`
+//! is measured to the mean of the end points that fell in that cell ([`super::hit_means`],
+//! GMapping's `cell.mean()`), not to the cell centre, so the match is not tied to the cell
+//! lattice. It scores `ln(z_hit·N(d; 0, σ²) + z_rand/z_max)` (Thrun et al., *Probabilistic Robotics*,
 //! table 6.3); a beam finding no obstacle scores as `d = (kernel_cells + 1)·resolution`.
 //! No field is precomputed: particle maps change every step, and only the cells under the beam
 //! ends are ever read.
@@ -20,6 +22,7 @@
 //! particle's weight factor (eq. 19). A failed match (too few beams near an obstacle) falls back
 //! to sampling the motion model, weighted by the likelihood at the sample.
 
+use super::hit_means::{HitMeans, MeanReader};
 use crate::motion::{pose_difference, MotionModelConfig};
 use nalgebra::{Matrix3, Point2, Vector2, Vector3};
 use rand::Rng;
@@ -63,6 +66,9 @@ pub struct ProposalConfig {
     pub likelihood_gain: f64,
     /// A match is accepted when at least this fraction of beams ends near an obstacle \[0..1\].
     pub min_match_fraction: f64,
+    /// Measure beam ends against the mean of the end points recorded in each occupied cell
+    /// (GMapping's `cell.mean()`, [`super::hit_means`]) instead of the cell centre.
+    pub mean_hit_points: bool,
 }
 
 impl Default for ProposalConfig {
@@ -81,6 +87,7 @@ impl Default for ProposalConfig {
             sample_angular_rad: 0.01,
             likelihood_gain: 3.0,
             min_match_fraction: 0.3,
+            mean_hit_points: false,
         }
     }
 }
@@ -166,6 +173,7 @@ const MAX_ROW: usize = 17;
 /// Scores scans against one grid; see the module documentation.
 pub struct GridScorer<'a> {
     grid: &'a OccupancyGrid,
+    means: &'a HitMeans,
     occupied_log_odds: f32,
     kernel: i32,
     table: SquaredDistanceTable,
@@ -176,8 +184,9 @@ pub struct GridScorer<'a> {
 }
 
 impl<'a> GridScorer<'a> {
-    /// A scorer over `grid`.
-    pub fn new(grid: &'a OccupancyGrid, config: &ProposalConfig) -> Self {
+    /// A scorer over `grid`, whose cells' mean hit points are `means` (a cell without a
+    /// recorded mean is scored at its centre, so empty `means` score against cell centres).
+    pub fn new(grid: &'a OccupancyGrid, means: &'a HitMeans, config: &ProposalConfig) -> Self {
         let kernel = config.kernel_cells.min(8) as i32;
         let model = LikelihoodFieldConfig {
             sigma_hit_m: config.sigma_m,
@@ -190,6 +199,7 @@ impl<'a> GridScorer<'a> {
         let resolution_m = grid.resolution_m();
         Self {
             grid,
+            means,
             occupied_log_odds: log_odds_from_probability(config.occupied_probability),
             kernel,
             miss: model.log_likelihood(model.max_distance_m),
@@ -242,9 +252,14 @@ impl<'a> GridScorer<'a> {
         }
     }
 
-    /// Squared distance \[m²\] from `hit` to the nearest occupied cell centre within the
-    /// kernel whose partner cell around `back` is not occupied.
-    fn nearest_squared(&self, hit: Point2<f64>, back: Point2<f64>) -> Option<f64> {
+    /// Squared distance \[m²\] from `hit` to the nearest mean hit point of an occupied cell
+    /// within the kernel whose partner cell around `back` is not occupied.
+    fn nearest_squared(
+        &self,
+        hit: Point2<f64>,
+        back: Point2<f64>,
+        means: &mut MeanReader<'_>,
+    ) -> Option<f64> {
         let (hx, hy, fx, fy) = self.cell(&hit)?;
         let (bx, by, _, _) = self.cell(&back)?;
         let k = self.kernel;
@@ -257,7 +272,8 @@ impl<'a> GridScorer<'a> {
                 if l <= self.occupied_log_odds || self.occupied(bx + dx, by + dy) {
                     continue;
                 }
-                let (ex, ey) = (f64::from(dx) - fx, f64::from(dy) - fy);
+                let (mx, my) = means.offset(hx + dx, hy + dy);
+                let (ex, ey) = (f64::from(dx) + mx - fx, f64::from(dy) + my - fy);
                 best = best.min(ex * ex + ey * ey);
             }
         }
@@ -270,8 +286,9 @@ impl<'a> GridScorer<'a> {
             log_likelihood: 0.0,
             matched: 0,
         };
+        let mut means = self.means.reader();
         for (hit, back) in scan.hits.iter().zip(&scan.backs) {
-            match self.nearest_squared(world_from_base * hit, world_from_base * back) {
+            match self.nearest_squared(world_from_base * hit, world_from_base * back, &mut means) {
                 Some(d2) => {
                     total.matched += 1;
                     total.log_likelihood += self.table.log_likelihood(d2);
