@@ -487,23 +487,26 @@ fn normal_equations(
     let mut cost = CostSum::new(kernel);
     for pair in pairs {
         let q = pose * pair.source;
-        let r = residuals(pair, pose);
-        let r2 = r.norm_squared();
+        let d = q - pair.target;
+        // One Jacobian row per residual: one along the normal, else one per axis.
+        let (r2, (j, r), second) = match pair.normal {
+            Some(n) => {
+                let r = n.dot(&d);
+                let j = Vector3::new(n.x, n.y, n.y * q.x - n.x * q.y);
+                (r * r, (j, r), None)
+            }
+            None => (
+                d.norm_squared(),
+                (Vector3::new(1.0, 0.0, -q.y), d.x),
+                Some((Vector3::new(0.0, 1.0, q.x), d.y)),
+            ),
+        };
         cost.add(r2);
         let w = weight(kernel.kind, kernel.scale_m, r2);
-        let rows: [(Vector3<f64>, f64); 2] = match pair.normal {
-            Some(n) => [
-                (Vector3::new(n.x, n.y, n.y * q.x - n.x * q.y), r.x),
-                (Vector3::zeros(), 0.0),
-            ],
-            None => [
-                (Vector3::new(1.0, 0.0, -q.y), r.x),
-                (Vector3::new(0.0, 1.0, q.x), r.y),
-            ],
-        };
-        for (j, res) in rows {
-            h += w * j * j.transpose();
-            g += w * j * res;
+        for (j, r) in std::iter::once((j, r)).chain(second) {
+            let wj = w * j;
+            h += wj * j.transpose();
+            g += wj * r;
         }
     }
     (h, g, cost.total())
