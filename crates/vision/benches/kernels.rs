@@ -11,9 +11,11 @@ use slamkit_vision::{
     clahe::{Clahe, ClaheConfig},
     color::rgb_to_gray,
     corners::{shi_tomasi, ShiTomasiConfig},
+    fast::fast9,
     filter::{gaussian_blur, scharr, sobel},
     klt::{track, KltConfig, KltPyramid},
-    pyramid::{pyr_down, Pyramid},
+    orb::{Orb, OrbConfig},
+    pyramid::{pyr_down, resize_bilinear, Pyramid},
     GrayImage, Image, RgbImage,
 };
 
@@ -58,6 +60,16 @@ fn kernels(c: &mut Criterion) {
     c.bench_function("vision/sobel_640x480", |b| b.iter(|| sobel(&gray)));
     c.bench_function("vision/scharr_640x480", |b| b.iter(|| scharr(&gray)));
     c.bench_function("vision/pyr_down_640x480", |b| b.iter(|| pyr_down(&gray)));
+    c.bench_function("vision/resize_1.2_640x480", |b| {
+        b.iter(|| resize_bilinear(&gray, 533, 400))
+    });
+    c.bench_function("vision/fast9_nms_640x480", |b| {
+        b.iter(|| fast9(&gray, 20, 31, true))
+    });
+    let orb = Orb::new(OrbConfig::default()).expect("default config");
+    c.bench_function("vision/orb_500_640x480", |b| {
+        b.iter(|| orb.detect_and_compute(&gray))
+    });
     c.bench_function("vision/pyramid_4_levels", |b| {
         b.iter(|| Pyramid::new(&gray, 3))
     });

@@ -21,6 +21,7 @@ use crate::filter::gaussian_blur;
 use crate::orb_pattern::BIT_PATTERN_31;
 use crate::pyramid::resize_bilinear;
 use crate::round::round_to_i32;
+use crate::simd::dispatch_avx2;
 
 /// A 256-bit binary descriptor, bit i in word i / 64.
 pub type Descriptor = [u64; 4];
@@ -318,36 +319,42 @@ impl PatternPoints {
     }
 }
 
-/// Rotated BRIEF: bit i compares the blurred image at the two rotated, rounded pattern points.
-/// The rotated offsets are computed first in a loop of their own (vectorised), then the image
-/// is sampled at them.
-fn describe(
+dispatch_avx2! {
+    /// Rotated BRIEF: bit i compares the blurred image at the two rotated, rounded pattern
+    /// points. The rotated offsets are computed first in a loop of their own (vectorised), then
+    /// the image is sampled at them.
+    fn describe => describe_portable(
+        blurred: &GrayImage,
+        pattern: &PatternPoints,
+        x: usize,
+        y: usize,
+        angle: f32,
+    ) -> Descriptor
+}
+
+#[inline(always)]
+fn describe_portable(
     blurred: &GrayImage,
     pattern: &PatternPoints,
     x: usize,
     y: usize,
     angle: f32,
 ) -> Descriptor {
-    let w = blurred.width() as isize;
     let d = blurred.data();
-    let centre = (y * blurred.width() + x) as isize;
+    let centre = y * blurred.width() + x;
+    // the row pitch as i32 (no image here is 2³¹ px wide; 0 would only keep it panic-free)
+    let w = i32::try_from(blurred.width()).unwrap_or(0);
     let (s, c) = angle.sin_cos();
     // rotated, rounded offsets in i32 lanes, vectorised (|offsets| < 19 px)
-    let (mut ix, mut iy) = ([0i32; 512], [0i32; 512]);
-    for (((ox, oy), &px), &py) in ix
-        .iter_mut()
-        .zip(iy.iter_mut())
-        .zip(&pattern.x)
-        .zip(&pattern.y)
-    {
-        *ox = round_to_i32(px * c - py * s);
-        *oy = round_to_i32(px * s + py * c);
+    let mut offsets = [0i32; 512];
+    for ((o, &px), &py) in offsets.iter_mut().zip(&pattern.x).zip(&pattern.y) {
+        *o = round_to_i32(px * s + py * c) * w + round_to_i32(px * c - py * s);
     }
-    let mut offsets = [0isize; 512];
-    for ((o, &ox), &oy) in offsets.iter_mut().zip(&ix).zip(&iy) {
-        *o = centre + oy as isize * w + ox as isize;
-    }
-    let at = |o: isize| d.get(o as usize).copied().unwrap_or(0);
+    let at = |o: i32| {
+        d.get(centre.wrapping_add_signed(o as isize))
+            .copied()
+            .unwrap_or(0)
+    };
     let mut desc = [0u64; 4];
     for (word, tests) in desc.iter_mut().zip(offsets.chunks_exact(128)) {
         // one bit per test without a branch (the comparisons are coin flips to a predictor)
@@ -420,6 +427,7 @@ mod tests {
                 }
             }
             assert_eq!(describe(&img, &pattern, 32, 32, angle), want, "{angle}");
+            assert_eq!(describe_portable(&img, &pattern, 32, 32, angle), want);
         }
     }
 

@@ -123,6 +123,7 @@ fn resize_bilinear_portable(img: &GrayImage, dw: usize, dh: usize) -> GrayImage 
     let data = img.data();
     // one spare column so that the right tap of the last column exists (its weight is 0)
     let mut blend = vec![0u32; w + 1];
+    let mut pairs = vec![[0u32; 2]; dw];
     let mut out = vec![0u8; dw * dh];
     for (dst, &(y0, fy)) in out.chunks_exact_mut(dw).zip(&yt) {
         let y1 = (y0 + 1).min(h - 1);
@@ -134,11 +135,19 @@ fn resize_bilinear_portable(img: &GrayImage, dw: usize, dh: usize) -> GrayImage 
             *b = v as u32;
         }
         blend[w] = blend[w - 1];
-        for (d, &(x0, fx)) in dst.iter_mut().zip(&xt) {
-            let (Some(&a), Some(&b)) = (blend.get(x0), blend.get(x0 + 1)) else {
-                continue;
-            };
-            *d = ((a * (RESIZE_ONE - fx) + b * fx + (1 << 21)) >> 22) as u8;
+        // the two taps of every output column (scalar loads), then the blend in lanes
+        for (p, &(x0, _)) in pairs.iter_mut().zip(&xt) {
+            if let Some(&[a, b]) = blend
+                .get(x0..x0 + 2)
+                .and_then(|s| <&[u32; 2]>::try_from(s).ok())
+            {
+                *p = [a, b];
+            }
+        }
+        for ((d, &[a, b]), &(_, fx)) in dst.iter_mut().zip(&pairs).zip(&xt) {
+            // a·(1 − f) + b·f as a + (b − a)·f: one product, below 2³¹ (a, b < 2²⁰, f ≤ 2¹¹)
+            let (a, b, f) = (a as i32, b as i32, fx as i32);
+            *d = (((a << 11) + (b - a) * f + (1 << 21)) >> 22) as u8;
         }
     }
     match Image::from_vec(dw, dh, out) {
