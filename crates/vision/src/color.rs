@@ -215,57 +215,79 @@ impl LabTables {
             .collect()
     }
 
-    #[inline]
-    fn cbrt_at(&self, v: i32) -> i32 {
-        let idx = (v + (1 << (LAB_SHIFT - 1))) >> LAB_SHIFT;
-        self.cbrt
-            .get(idx.clamp(0, CBRT_TAB_SIZE as i32 - 1) as usize)
-            .copied()
-            .unwrap_or(0)
-    }
-
-    #[inline]
-    fn rgb_to_lab(&self, [r, g, b]: [u8; 3]) -> [u8; 3] {
-        let (r, g, b) = (
-            self.gamma[r as usize],
-            self.gamma[g as usize],
-            self.gamma[b as usize],
-        );
-        let [cx, cy, cz] = self.to_xyz;
-        let fx = self.cbrt_at(r * cx[0] + g * cx[1] + b * cx[2]);
-        let fy = self.cbrt_at(r * cy[0] + g * cy[1] + b * cy[2]);
-        let fz = self.cbrt_at(r * cz[0] + g * cz[1] + b * cz[2]);
+    /// RGB → 8-bit L, a, b of up to [`CHUNK`] pixels (OpenCV's `RGB2Lab_b`). Each table stage
+    /// is a loop of scalar look-ups, each arithmetic stage a loop over all lanes (vectorised).
+    #[inline(always)]
+    fn rgb_to_lab_chunk(&self, rgb: &[[u8; 3]], out: &mut [[u8; CHUNK]; 3]) {
+        let mut lin = [[0i32; CHUNK]; 3];
+        for (i, &[r, g, b]) in rgb.iter().take(CHUNK).enumerate() {
+            lin[0][i] = self.gamma[usize::from(r)];
+            lin[1][i] = self.gamma[usize::from(g)];
+            lin[2][i] = self.gamma[usize::from(b)];
+        }
+        // X, Y, Z / white → index into the cube-root table → f(X), f(Y), f(Z)
+        let mut f = [[0i32; CHUNK]; 3];
+        for (fk, c) in f.iter_mut().zip(&self.to_xyz) {
+            let mut idx = [0i32; CHUNK];
+            for (i, o) in idx.iter_mut().enumerate() {
+                let v = lin[0][i] * c[0] + lin[1][i] * c[1] + lin[2][i] * c[2];
+                *o = ((v + (1 << (LAB_SHIFT - 1))) >> LAB_SHIFT).clamp(0, CBRT_TAB_SIZE as i32 - 1);
+            }
+            for (o, &i) in fk.iter_mut().zip(&idx).take(rgb.len()) {
+                *o = self.cbrt.get(i as usize).copied().unwrap_or(0);
+            }
+        }
         const L_SCALE: i32 = (116 * 255 + 50) / 100;
         const L_SHIFT: i32 = -((16 * 255 * (1 << LAB_SHIFT2) + 50) / 100);
-        let half = 1 << (LAB_SHIFT2 - 1);
-        let l = (L_SCALE * fy + L_SHIFT + half) >> LAB_SHIFT2;
-        let a = (500 * (fx - fy) + 128 * (1 << LAB_SHIFT2) + half) >> LAB_SHIFT2;
-        let bb = (200 * (fy - fz) + 128 * (1 << LAB_SHIFT2) + half) >> LAB_SHIFT2;
-        [sat_u8(l), sat_u8(a), sat_u8(bb)]
-    }
-
-    #[inline]
-    fn ab_at(&self, i: i32) -> i64 {
-        let idx = (i - MIN_AB).clamp(0, AB_TAB_SIZE as i32 - 1) as usize;
-        i64::from(self.ab_to_xz.get(idx).copied().unwrap_or(0))
-    }
-
-    #[inline]
-    fn lab_to_rgb(&self, [l, a, b]: [u8; 3]) -> [u8; 3] {
-        let (y, ify) = self.l_to_yf[l as usize];
-        let adiv = ((5 * i32::from(a) * 53687 + (1 << 7)) >> 13) - 128 * LUT_BASE / 500;
-        let bdiv = ((i32::from(b) * 41943 + (1 << 4)) >> 9) - 128 * LUT_BASE / 200 + 1;
-        let x = self.ab_at(ify + adiv);
-        let z = self.ab_at(ify - bdiv);
-        let y = i64::from(y);
-        const SHIFT: i64 = 14;
-        let mut out = [0u8; 3];
-        for (o, c) in out.iter_mut().zip(&self.to_rgb) {
-            let v = (c[0] * x + c[1] * y + c[2] * z + (1 << (SHIFT - 1))) >> SHIFT;
-            let idx = v.clamp(0, INV_GAMMA_TAB_SIZE as i64 - 1) as usize;
-            *o = self.inv_gamma.get(idx).copied().unwrap_or(0);
+        const HALF: i32 = 1 << (LAB_SHIFT2 - 1);
+        const AB_BIAS: i32 = 128 * (1 << LAB_SHIFT2) + HALF;
+        let [ol, oa, ob] = out;
+        for i in 0..CHUNK {
+            let (fx, fy, fz) = (f[0][i], f[1][i], f[2][i]);
+            ol[i] = sat_u8((L_SCALE * fy + L_SHIFT + HALF) >> LAB_SHIFT2);
+            oa[i] = sat_u8((500 * (fx - fy) + AB_BIAS) >> LAB_SHIFT2);
+            ob[i] = sat_u8((200 * (fy - fz) + AB_BIAS) >> LAB_SHIFT2);
         }
-        out
+    }
+
+    /// 8-bit L, (a, b) → RGB of up to [`CHUNK`] pixels (OpenCV's `Lab2RGBinteger`), in stages
+    /// as [`LabTables::rgb_to_lab_chunk`].
+    #[inline(always)]
+    fn lab_to_rgb_chunk(&self, l: &[u8], ab: &[[u8; 2]], out: &mut [[u8; 3]]) {
+        let n = l.len().min(ab.len()).min(out.len()).min(CHUNK);
+        let (mut y, mut ify) = ([0i32; CHUNK], [0i32; CHUNK]);
+        let (mut a, mut b) = ([0i32; CHUNK], [0i32; CHUNK]);
+        for i in 0..n {
+            (y[i], ify[i]) = self.l_to_yf[usize::from(l[i])];
+            let [pa, pb] = ab[i];
+            (a[i], b[i]) = (i32::from(pa), i32::from(pb));
+        }
+        // indices of f⁻¹ for the X and Z axes
+        let (mut ix, mut iz) = ([0i32; CHUNK], [0i32; CHUNK]);
+        let last = AB_TAB_SIZE as i32 - 1;
+        for i in 0..CHUNK {
+            let adiv = ((5 * a[i] * 53687 + (1 << 7)) >> 13) - 128 * LUT_BASE / 500;
+            let bdiv = ((b[i] * 41943 + (1 << 4)) >> 9) - 128 * LUT_BASE / 200 + 1;
+            ix[i] = (ify[i] + adiv - MIN_AB).clamp(0, last);
+            iz[i] = (ify[i] - bdiv - MIN_AB).clamp(0, last);
+        }
+        let (mut x, mut z) = ([0i32; CHUNK], [0i32; CHUNK]);
+        for i in 0..n {
+            x[i] = self.ab_to_xz.get(ix[i] as usize).copied().unwrap_or(0);
+            z[i] = self.ab_to_xz.get(iz[i] as usize).copied().unwrap_or(0);
+        }
+        const SHIFT: i64 = 14;
+        for (k, c) in self.to_rgb.iter().enumerate() {
+            let mut idx = [0i32; CHUNK];
+            for (i, o) in idx.iter_mut().enumerate() {
+                let (xi, yi, zi) = (i64::from(x[i]), i64::from(y[i]), i64::from(z[i]));
+                let v = (c[0] * xi + c[1] * yi + c[2] * zi + (1 << (SHIFT - 1))) >> SHIFT;
+                *o = v.clamp(0, INV_GAMMA_TAB_SIZE as i64 - 1) as i32;
+            }
+            for (o, &i) in out.iter_mut().zip(&idx).take(n) {
+                o[k] = self.inv_gamma.get(i as usize).copied().unwrap_or(0);
+            }
+        }
     }
 }
 
@@ -274,50 +296,144 @@ fn sat_u8(v: i32) -> u8 {
     v.clamp(0, 255) as u8
 }
 
+/// Pixels converted per stage of the Lab conversions (their working set stays in L1).
+const CHUNK: usize = 64;
+
 /// Converts 8-bit sRGB to 8-bit L\*a\*b\* exactly as OpenCV's `COLOR_RGB2Lab`.
 pub fn rgb_to_lab(rgb: &RgbImage) -> LabImage {
-    let t = LabTables::get();
-    image_like(rgb, rgb.data().iter().map(|&p| t.rgb_to_lab(p)).collect())
-}
-
-/// Converts 8-bit L\*a\*b\* back to sRGB exactly as OpenCV's `COLOR_Lab2RGB`.
-pub fn lab_to_rgb(lab: &LabImage) -> RgbImage {
-    let t = LabTables::get();
-    image_like(lab, lab.data().iter().map(|&p| t.lab_to_rgb(p)).collect())
-}
-
-/// Splits RGB into the 8-bit L channel and the (a, b) pair per pixel, for methods (CLAHE) that
-/// work on lightness only.
-pub fn rgb_to_lab_planes(rgb: &RgbImage) -> (GrayImage, Image<[u8; 2]>) {
-    let t = LabTables::get();
-    let n = rgb.data().len();
-    let (mut l, mut ab) = (Vec::with_capacity(n), Vec::with_capacity(n));
-    for &p in rgb.data() {
-        let [pl, pa, pb] = t.rgb_to_lab(p);
-        l.push(pl);
-        ab.push([pa, pb]);
-    }
-    (image_like(rgb, l), image_like(rgb, ab))
-}
-
-/// Inverse of [`rgb_to_lab_planes`]; `l` and `ab` must have the same size (else `None`).
-pub fn lab_planes_to_rgb(l: &GrayImage, ab: &Image<[u8; 2]>) -> Option<RgbImage> {
-    if l.width() != ab.width() || l.height() != ab.height() {
-        return None;
-    }
-    let t = LabTables::get();
+    let (l, ab) = rgb_to_lab_planes(rgb);
     let data = l
         .data()
         .iter()
         .zip(ab.data())
-        .map(|(&pl, &[pa, pb])| t.lab_to_rgb([pl, pa, pb]))
+        .map(|(&l, &[a, b])| [l, a, b])
         .collect();
+    image_like(rgb, data)
+}
+
+/// Converts 8-bit L\*a\*b\* back to sRGB exactly as OpenCV's `COLOR_Lab2RGB`.
+pub fn lab_to_rgb(lab: &LabImage) -> RgbImage {
+    let l = image_like(lab, lab.data().iter().map(|p| p[0]).collect());
+    let ab = image_like(lab, lab.data().iter().map(|p| [p[1], p[2]]).collect());
+    match lab_planes_to_rgb(&l, &ab) {
+        Some(rgb) => rgb,
+        None => unreachable!("planes of one image have its size"),
+    }
+}
+
+dispatch_avx2! {
+    /// Splits RGB into the 8-bit L channel and the (a, b) pair per pixel, for methods (CLAHE)
+    /// that work on lightness only.
+    pub fn rgb_to_lab_planes => rgb_to_lab_planes_portable(rgb: &RgbImage) -> (GrayImage, Image<[u8; 2]>)
+}
+
+#[inline(always)]
+fn rgb_to_lab_planes_portable(rgb: &RgbImage) -> (GrayImage, Image<[u8; 2]>) {
+    let t = LabTables::get();
+    let n = rgb.data().len();
+    let (mut l, mut ab) = (vec![0u8; n], vec![[0u8; 2]; n]);
+    let mut lab = [[0u8; CHUNK]; 3];
+    let chunks = rgb.data().chunks(CHUNK).zip(l.chunks_mut(CHUNK));
+    for ((src, l), ab) in chunks.zip(ab.chunks_mut(CHUNK)) {
+        t.rgb_to_lab_chunk(src, &mut lab);
+        l.copy_from_slice(&lab[0][..l.len()]);
+        for ((o, &a), &b) in ab.iter_mut().zip(&lab[1]).zip(&lab[2]) {
+            *o = [a, b];
+        }
+    }
+    (image_like(rgb, l), image_like(rgb, ab))
+}
+
+dispatch_avx2! {
+    /// Inverse of [`rgb_to_lab_planes`]; `l` and `ab` must have the same size (else `None`).
+    pub fn lab_planes_to_rgb => lab_planes_to_rgb_portable(l: &GrayImage, ab: &Image<[u8; 2]>) -> Option<RgbImage>
+}
+
+#[inline(always)]
+fn lab_planes_to_rgb_portable(l: &GrayImage, ab: &Image<[u8; 2]>) -> Option<RgbImage> {
+    if l.width() != ab.width() || l.height() != ab.height() {
+        return None;
+    }
+    let t = LabTables::get();
+    let mut data = vec![[0u8; 3]; l.data().len()];
+    let chunks = l.data().chunks(CHUNK).zip(ab.data().chunks(CHUNK));
+    for ((l, ab), out) in chunks.zip(data.chunks_mut(CHUNK)) {
+        t.lab_to_rgb_chunk(l, ab, out);
+    }
     Some(image_like(l, data))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// OpenCV's `RGB2Lab_b` one pixel at a time: the reference for the staged conversion.
+    fn rgb_to_lab_pixel(t: &LabTables, [r, g, b]: [u8; 3]) -> [u8; 3] {
+        let (r, g, b) = (
+            t.gamma[r as usize],
+            t.gamma[g as usize],
+            t.gamma[b as usize],
+        );
+        let cbrt_at = |v: i32| {
+            let idx = (v + (1 << (LAB_SHIFT - 1))) >> LAB_SHIFT;
+            t.cbrt[idx.clamp(0, CBRT_TAB_SIZE as i32 - 1) as usize]
+        };
+        let [cx, cy, cz] = t.to_xyz;
+        let fx = cbrt_at(r * cx[0] + g * cx[1] + b * cx[2]);
+        let fy = cbrt_at(r * cy[0] + g * cy[1] + b * cy[2]);
+        let fz = cbrt_at(r * cz[0] + g * cz[1] + b * cz[2]);
+        let half = 1 << (LAB_SHIFT2 - 1);
+        let l = ((116 * 255 + 50) / 100 * fy - (16 * 255 * (1 << LAB_SHIFT2) + 50) / 100 + half)
+            >> LAB_SHIFT2;
+        let a = (500 * (fx - fy) + 128 * (1 << LAB_SHIFT2) + half) >> LAB_SHIFT2;
+        let bb = (200 * (fy - fz) + 128 * (1 << LAB_SHIFT2) + half) >> LAB_SHIFT2;
+        [sat_u8(l), sat_u8(a), sat_u8(bb)]
+    }
+
+    /// OpenCV's `Lab2RGBinteger` one pixel at a time.
+    fn lab_to_rgb_pixel(t: &LabTables, [l, a, b]: [u8; 3]) -> [u8; 3] {
+        let (y, ify) = t.l_to_yf[l as usize];
+        let adiv = ((5 * i32::from(a) * 53687 + (1 << 7)) >> 13) - 128 * LUT_BASE / 500;
+        let bdiv = ((i32::from(b) * 41943 + (1 << 4)) >> 9) - 128 * LUT_BASE / 200 + 1;
+        let ab_at =
+            |i: i32| i64::from(t.ab_to_xz[(i - MIN_AB).clamp(0, AB_TAB_SIZE as i32 - 1) as usize]);
+        let (x, z, y) = (ab_at(ify + adiv), ab_at(ify - bdiv), i64::from(y));
+        t.to_rgb.map(|c| {
+            let v = (c[0] * x + c[1] * y + c[2] * z + (1 << 13)) >> 14;
+            t.inv_gamma[v.clamp(0, INV_GAMMA_TAB_SIZE as i64 - 1) as usize]
+        })
+    }
+
+    /// The staged conversions (portable and AVX2 builds) equal the per-pixel ones on every
+    /// third level of each channel, both ways, on lengths that are not whole chunks.
+    #[test]
+    fn staged_lab_matches_per_pixel() {
+        let t = LabTables::get();
+        let levels = || (0..=255u8).step_by(3).chain([255]);
+        let px: Vec<[u8; 3]> = levels()
+            .flat_map(|r| levels().flat_map(move |g| levels().map(move |b| [r, g, b])))
+            .collect();
+        let n = px.len();
+        let img = Image::from_vec(n, 1, px).unwrap();
+        let want: Vec<[u8; 3]> = img.data().iter().map(|&p| rgb_to_lab_pixel(t, p)).collect();
+        assert_eq!(rgb_to_lab(&img).data(), want);
+        let (l, ab) = rgb_to_lab_planes_portable(&img);
+        let lab: Vec<[u8; 3]> = l
+            .data()
+            .iter()
+            .zip(ab.data())
+            .map(|(&l, &[a, b])| [l, a, b])
+            .collect();
+        assert_eq!(lab, want);
+        // Lab → RGB on Lab triples spread over the whole cube
+        let lab = img.clone();
+        let want: Vec<[u8; 3]> = lab.data().iter().map(|&p| lab_to_rgb_pixel(t, p)).collect();
+        assert_eq!(lab_to_rgb(&lab).data(), want);
+        let l = image_like(&lab, lab.data().iter().map(|p| p[0]).collect());
+        let ab = image_like(&lab, lab.data().iter().map(|p| [p[1], p[2]]).collect());
+        assert_eq!(lab_planes_to_rgb_portable(&l, &ab).unwrap().data(), want);
+        assert!(lab_planes_to_rgb(&l, &Image::filled(1, 1, [0u8; 2])).is_none());
+    }
 
     fn rgb(pixels: Vec<[u8; 3]>) -> RgbImage {
         let n = pixels.len();
