@@ -62,38 +62,95 @@ fn fast9_portable(img: &GrayImage, threshold: u8, border: usize, nonmax: bool) -
     if w <= 2 * border || h <= 2 * border {
         return Vec::new();
     }
-    let data = img.data();
-    let mut scores = if nonmax { vec![0u8; w * h] } else { Vec::new() };
+    let mut rows = RowDetector::new(img, border, threshold);
     let mut corners = Vec::new();
-    let offsets: [isize; 16] = CIRCLE.map(|(dx, dy)| dy * w as isize + dx);
-    // the farthest circle pixel is 3 rows and 3 columns away
-    let reach = 3 * w + 3 + LANES;
-    let mut tail = [[0u8; LANES]; 17];
-    for y in border..h - border {
+    if !nonmax {
+        for y in border..h - border {
+            rows.detect(y, &mut corners, &mut []);
+        }
+        return corners;
+    }
+    // Scores (+1, 0 = no corner) of the last three rows, row y in slot y mod 3: a row's corners
+    // are suppressed once the row below it is scored.
+    let mut scores = vec![0u8; 3 * w];
+    let (mut above, mut current) = (Vec::new(), Vec::new());
+    for y in border..=h - border {
+        let slot = (y % 3) * w;
+        scores[slot..slot + w].fill(0);
+        if y < h - border {
+            rows.detect(y, &mut current, &mut scores[slot..slot + w]);
+        }
+        let row = |dy: usize| {
+            let s = ((y + 3 - dy) % 3) * w;
+            &scores[s..s + w]
+        };
+        let (up, mid, dn) = (row(2), row(1), row(0));
+        corners.extend(above.drain(..).filter(|k: &FastCorner| {
+            let (x, s) = (k.x, mid[k.x]);
+            let beaten = |r: &[u8]| r[x - 1] >= s || r[x] >= s || r[x + 1] >= s;
+            !(beaten(up) || beaten(dn) || mid[x - 1] >= s || mid[x + 1] >= s)
+        }));
+        std::mem::swap(&mut above, &mut current);
+    }
+    corners
+}
+
+/// Per-row FAST-9 of one image, with its circle offsets and a zero-padded copy for the chunks
+/// that would run past the image.
+struct RowDetector<'a> {
+    data: &'a [u8],
+    w: usize,
+    border: usize,
+    threshold: u8,
+    offsets: [isize; 16],
+    tail: [Lanes; 17],
+}
+
+impl<'a> RowDetector<'a> {
+    #[inline(always)]
+    fn new(img: &'a GrayImage, border: usize, threshold: u8) -> Self {
+        let w = img.width();
+        Self {
+            data: img.data(),
+            w,
+            border,
+            threshold,
+            offsets: CIRCLE.map(|(dx, dy)| dy * w as isize + dx),
+            tail: [[0u8; LANES]; 17],
+        }
+    }
+
+    /// Appends the corners of row `y` to `out`; when `scores` is a row long, also writes each
+    /// corner's score + 1 there.
+    #[inline(always)]
+    fn detect(&mut self, y: usize, out: &mut Vec<FastCorner>, scores: &mut [u8]) {
+        let (w, border) = (self.w, self.border);
+        // the farthest circle pixel is 3 rows and 3 columns away
+        let reach = 3 * w + 3 + LANES;
         for x0 in (border..w - border).step_by(LANES) {
             let c0 = y * w + x0;
-            let starts: [usize; 17] = std::array::from_fn(|k| match offsets.get(k) {
-                Some(&o) => c0.wrapping_add_signed(o),
-                None => c0,
-            });
-            // chunks that would run past the image (last rows) are copied, zero-padded
-            let chunks: [&Lanes; 17] = if c0 + reach <= data.len() {
-                let mut chunks = [&ZERO; 17];
+            let mut starts = [c0; 17];
+            for (s, &o) in starts.iter_mut().zip(&self.offsets) {
+                *s = c0.wrapping_add_signed(o);
+            }
+            let mut chunks = [&ZERO; 17];
+            if c0 + reach <= self.data.len() {
                 for (c, &s) in chunks.iter_mut().zip(&starts) {
-                    *c = as_lanes(&data[s..]);
+                    *c = as_lanes(&self.data[s..]);
                 }
-                chunks
             } else {
-                for (t, &s) in tail.iter_mut().zip(&starts) {
-                    *t = load(data, s);
+                for (t, &s) in self.tail.iter_mut().zip(&starts) {
+                    *t = load(self.data, s);
                 }
-                std::array::from_fn(|k| &tail[k])
-            };
+                for (c, t) in chunks.iter_mut().zip(&self.tail) {
+                    *c = t;
+                }
+            }
             let (ring, centre) = chunks.split_at(16);
             let (Ok(ring), [centre]) = (<&[&Lanes; 16]>::try_from(ring), centre) else {
                 continue;
             };
-            let mut found = segment_test(centre, ring, threshold);
+            let mut found = segment_test(centre, ring, self.threshold);
             let lanes = (w - border - x0).min(LANES);
             if lanes < LANES {
                 found &= (1u32 << lanes) - 1;
@@ -101,36 +158,22 @@ fn fast9_portable(img: &GrayImage, threshold: u8, border: usize, nonmax: bool) -
             while found != 0 {
                 let lane = found.trailing_zeros() as usize;
                 found &= found - 1;
-                let score = corner_score(centre[lane], &ring.map(|r| r[lane]), threshold);
-                corners.push(FastCorner {
+                let mut circle = [0u8; 16];
+                for (c, r) in circle.iter_mut().zip(ring) {
+                    *c = r[lane];
+                }
+                let score = corner_score(centre[lane], &circle, self.threshold);
+                out.push(FastCorner {
                     x: x0 + lane,
                     y,
                     score,
                 });
-                if nonmax {
-                    scores[c0 + lane] = score.saturating_add(1);
+                if let Some(s) = scores.get_mut(x0 + lane) {
+                    *s = score.saturating_add(1);
                 }
             }
         }
     }
-    if nonmax {
-        corners.retain(|k| {
-            let c = k.y * w + k.x;
-            let s = scores[c];
-            let around = [
-                c - w - 1,
-                c - w,
-                c - w + 1,
-                c - 1,
-                c + 1,
-                c + w - 1,
-                c + w,
-                c + w + 1,
-            ];
-            around.iter().all(|&o| s > scores[o])
-        });
-    }
-    corners
 }
 
 /// The first `LANES` pixels of `s` (which the caller makes at least that long).
