@@ -31,11 +31,9 @@ pub struct RawMatch {
     pub status: ScanStatus,
 }
 
-/// A layer's keyframe maps: the layer's own keyframes, and the map its scans are matched
-/// against, which also holds the keyframes of the layers near it ([`LayerIcpMap::share`]).
+/// A layer's keyframe map.
 pub struct LayerIcpMap {
     map: KeyframeMap,
-    matching: KeyframeMap,
     last_keyframe: Option<Pose2>,
     failures: usize,
     scans: usize,
@@ -46,26 +44,15 @@ impl LayerIcpMap {
     pub fn new(config: &IcpSlamConfig) -> Self {
         Self {
             map: KeyframeMap::new(config.map_voxel_m, config.map_keyframes),
-            matching: KeyframeMap::new(config.map_voxel_m, config.map_keyframes),
             last_keyframe: None,
             failures: 0,
             scans: 0,
         }
     }
 
-    /// The map of the layer's own keyframes.
+    /// The point map.
     pub fn map(&self) -> &KeyframeMap {
         &self.map
-    }
-
-    /// The map scans are matched against: the layer's own keyframes and those shared with it.
-    pub fn matching_map(&self) -> &KeyframeMap {
-        &self.matching
-    }
-
-    /// Adds a keyframe of another layer to the map this layer's scans are matched against.
-    pub fn share(&mut self, keyframe: Keyframe) {
-        self.matching.insert(keyframe);
     }
 
     /// Scans matched or inserted in this layer.
@@ -76,7 +63,7 @@ impl LayerIcpMap {
     /// Aligns `scan` to the map from `guess`: ICP, then a correlative search and ICP again when
     /// ICP's goodness is below `min_goodness`.
     pub fn match_scan(&self, scan: &PreparedScan, guess: &Pose2, c: &IcpSlamConfig) -> RawMatch {
-        if self.matching.is_empty() {
+        if self.map.is_empty() {
             return RawMatch {
                 world_from_base: None,
                 status: ScanStatus::Initialised,
@@ -93,7 +80,7 @@ impl LayerIcpMap {
                 .filter(|r| r.goodness >= c.min_goodness)
                 .map(|r| r.target_from_source)
         };
-        if let Some(pose) = good(align(&scan.points, self.matching.index(), guess, &c.icp)) {
+        if let Some(pose) = good(align(&scan.points, self.map.index(), guess, &c.icp)) {
             return RawMatch {
                 world_from_base: Some(pose),
                 status: ScanStatus::Matched,
@@ -101,12 +88,12 @@ impl LayerIcpMap {
         }
         let recovered = c
             .correlative_fallback
-            .then(|| correlative_match(&scan.points, self.matching.points(), guess, &c.correlative))
+            .then(|| correlative_match(&scan.points, self.map.points(), guess, &c.correlative))
             .and_then(Result::ok)
             .and_then(|coarse| {
                 good(align(
                     &scan.points,
-                    self.matching.index(),
+                    self.map.index(),
                     &coarse.target_from_source,
                     &c.icp,
                 ))
@@ -124,14 +111,14 @@ impl LayerIcpMap {
     /// only predicted) and inserts the scan as a keyframe when the layer is empty, or the drone
     /// moved or turned far enough since the last keyframe and the pose was accepted (or the
     /// layer failed to match `max_failures_before_insert` scans in a row, so that the map
-    /// follows the drone into new ground). Returns the keyframe when inserted.
+    /// follows the drone into new ground). Returns true when inserted.
     pub fn record(
         &mut self,
         scan: &PreparedScan,
         pose: &Pose2,
         accepted: bool,
         c: &IcpSlamConfig,
-    ) -> Option<Keyframe> {
+    ) -> bool {
         self.scans += 1;
         self.failures = if accepted { 0 } else { self.failures + 1 };
         let moved = self.last_keyframe.map_or(true, |kf| {
@@ -142,18 +129,15 @@ impl LayerIcpMap {
         let stale = self.failures >= c.max_failures_before_insert.max(1);
         let insert = (self.map.is_empty() || (moved && (accepted || stale)))
             && scan.points.len() >= c.min_scan_points;
-        if !insert {
-            return None;
+        if insert {
+            self.map.insert(Keyframe {
+                world_from_base: *pose,
+                points: scan.points.clone(),
+                normals: scan.normals.clone(),
+            });
+            self.last_keyframe = Some(*pose);
+            self.failures = 0;
         }
-        let keyframe = Keyframe {
-            world_from_base: *pose,
-            points: scan.points.clone(),
-            normals: scan.normals.clone(),
-        };
-        self.map.insert(keyframe.clone());
-        self.matching.insert(keyframe.clone());
-        self.last_keyframe = Some(*pose);
-        self.failures = 0;
-        Some(keyframe)
+        insert
     }
 }
