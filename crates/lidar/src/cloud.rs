@@ -71,10 +71,18 @@ impl Hasher for VoxelHasher {
 
 /// Integer voxel coordinates of `p` for voxels of side `voxel_m`.
 pub fn voxel_key(p: &Point2<f64>, voxel_m: f64) -> (i64, i64) {
-    (
-        (p.x / voxel_m).floor() as i64,
-        (p.y / voxel_m).floor() as i64,
-    )
+    (floor_i64(p.x / voxel_m), floor_i64(p.y / voxel_m))
+}
+
+/// `v.floor() as i64` (saturating, NaN to 0), without the library call `floor` compiles to on
+/// baseline x86-64 (a tenth of the grid query's time, a few percent of ICP-SLAM's, went there).
+pub(crate) fn floor_i64(v: f64) -> i64 {
+    let t = v as i64;
+    if (t as f64) > v {
+        t.saturating_sub(1)
+    } else {
+        t
+    }
 }
 
 /// Unit normal of each point from the PCA of its `neighbours` nearest points within
@@ -132,6 +140,28 @@ fn line_normal(pts: &[Point2<f64>], max_flatness: f64) -> Option<Vector2<f64>> {
 mod tests {
     use super::*;
     use slamkit_core::Pose2;
+
+    #[test]
+    fn floor_matches_the_library() {
+        for v in [
+            -2.5,
+            -2.0,
+            -1e-300,
+            -0.0,
+            0.0,
+            0.7,
+            3.0,
+            1e11 + 0.5,
+            -1e11 - 0.5,
+            1e300,
+            -1e300,
+            f64::NAN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        ] {
+            assert_eq!(floor_i64(v), v.floor() as i64, "{v}");
+        }
+    }
 
     #[test]
     fn points_skip_bad_beams_and_apply_mounting() {

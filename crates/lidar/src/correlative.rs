@@ -12,6 +12,7 @@
 //! answer equals the exhaustive one. It needs no odometry, only a window large enough to hold
 //! the true pose.
 
+use crate::cloud::floor_i64;
 use crate::error::check_fields;
 use crate::LidarError;
 use nalgebra::{Point2, Vector2};
@@ -240,7 +241,7 @@ impl Field {
 /// to cells far outside any field, clamped so that offsets added later cannot overflow.
 fn lattice_cell(origin: &Point2<f64>, res: f64, p: &Point2<f64>) -> (i64, i64) {
     let d = (p - origin) / res;
-    let clamp = |v: f64| v.clamp(-1e9, 1e9).floor() as i64;
+    let clamp = |v: f64| floor_i64(v.clamp(-1e9, 1e9));
     (clamp(d.x), clamp(d.y))
 }
 

@@ -13,6 +13,7 @@
 //! ring lies beyond the radius: the answer is the exact nearest point within the radius.
 
 use super::{normals_or_none, NearestNeighbours, Neighbour};
+use crate::cloud::floor_i64;
 use nalgebra::{Point2, Vector2};
 
 /// Points and queries farther than this from the origin along an axis are ignored (no scanner
@@ -196,17 +197,6 @@ struct Found {
     best: usize,
     /// Smallest squared distance of the other points read so far.
     other_d2: f64,
-}
-
-/// `v.floor() as i64` (for `|v|` below 2⁵³), without the library call `floor` compiles to on
-/// baseline x86-64 (a tenth of the query time went there).
-fn floor_i64(v: f64) -> i64 {
-    let t = v as i64;
-    if (t as f64) > v {
-        t - 1
-    } else {
-        t
-    }
 }
 
 impl NearestNeighbours for GridIndex {
@@ -446,23 +436,6 @@ mod tests {
             empty.nearest_within_clear(&Point2::origin(), 1.0).1,
             f64::INFINITY
         );
-    }
-
-    #[test]
-    fn floor_matches_the_library() {
-        for v in [
-            -2.5,
-            -2.0,
-            -1e-300,
-            -0.0,
-            0.0,
-            0.7,
-            3.0,
-            1e11 + 0.5,
-            -1e11 - 0.5,
-        ] {
-            assert_eq!(floor_i64(v), v.floor() as i64, "{v}");
-        }
     }
 
     #[test]
