@@ -335,9 +335,14 @@ impl Window {
     }
 }
 
-/// `Σ a·b` over equal-length slices, in [`BLOCK`]-long `i32` sums (plain multiply-add of
-/// sign-extended `i16`, which the compiler turns into SSE2 `pmaddwd`).
-fn dot(a: &[i16], b: &[i16]) -> i64 {
+dispatch_avx2! {
+    /// `Σ a·b` over equal-length slices, in [`BLOCK`]-long `i32` sums (plain multiply-add of
+    /// sign-extended `i16`, which the compiler turns into `pmaddwd`).
+    fn dot => dot_portable(a: &[i16], b: &[i16]) -> i64
+}
+
+#[inline(always)]
+fn dot_portable(a: &[i16], b: &[i16]) -> i64 {
     a.chunks(BLOCK)
         .zip(b.chunks(BLOCK))
         .map(|(a, b)| {
@@ -351,8 +356,13 @@ fn dot(a: &[i16], b: &[i16]) -> i64 {
         .sum()
 }
 
-/// `Σ (i − j)·g` over equal-length slices, as [`dot`].
-fn diff_dot(i: &[i16], j: &[i16], g: &[i16]) -> i64 {
+dispatch_avx2! {
+    /// `Σ (i − j)·g` over equal-length slices, as [`dot`].
+    fn diff_dot => diff_dot_portable(i: &[i16], j: &[i16], g: &[i16]) -> i64
+}
+
+#[inline(always)]
+fn diff_dot_portable(i: &[i16], j: &[i16], g: &[i16]) -> i64 {
     i.chunks(BLOCK)
         .zip(j.chunks(BLOCK))
         .zip(g.chunks(BLOCK))
@@ -683,6 +693,22 @@ mod tests {
             interpolate_portable(&grads.gx.data()[start..], 40, w, W_BITS, &mut b, stride);
             assert_eq!(a, b, "gradient at ({x0}, {y0})");
         }
+    }
+
+    /// The AVX2 builds of the window sums equal the portable ones.
+    #[test]
+    fn window_sum_builds_agree() {
+        let mut rng = ChaCha8Rng::seed_from_u64(9);
+        let mut v = || -> Vec<i16> { (0..21 * 24).map(|_| rng.gen_range(-4081..=4081)).collect() };
+        let (a, b, c) = (v(), v(), v());
+        assert_eq!(dot(&a, &b), dot_portable(&a, &b));
+        assert_eq!(diff_dot(&a, &b, &c), diff_dot_portable(&a, &b, &c));
+        let naive: i64 = a
+            .iter()
+            .zip(&b)
+            .map(|(&x, &y)| i64::from(x) * i64::from(y))
+            .sum();
+        assert_eq!(dot(&a, &b), naive);
     }
 
     #[test]
