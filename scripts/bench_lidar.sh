@@ -6,7 +6,9 @@
 # (the machine is shared: compare ratios from one run, not times across runs).
 # METHOD=rbpf compares the particle filters instead (both with 10 particles, MRPT's ICP-based
 # rbpf-slam config); LOGS="aces mit-csail" runs only those logs.
-# usage: [METHOD=icp|rbpf] [LOGS="intel aces mit-csail"] scripts/bench_lidar.sh [OUTDIR]
+# SLAMKIT_BIN=path runs that slamkit binary instead of building one (e.g. an older build, to
+# compare before and after a change against MRPT).
+# usage: [METHOD=icp|rbpf] [LOGS="intel aces mit-csail"] [SLAMKIT_BIN=...] scripts/bench_lidar.sh [OUTDIR]
 #        (needs SLAMKIT_DATA; installs mrpt-apps if missing)
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
@@ -26,8 +28,12 @@ if ! command -v icp-slam >/dev/null; then
   (apt-get update -qq && apt-get install -y -qq mrpt-apps time) >/dev/null
 fi
 python3 -c 'import numpy' 2>/dev/null || pip install -q numpy
-cargo build --release -q -p slamkit --manifest-path "$root/Cargo.toml"
-slamkit=${CARGO_TARGET_DIR:-$root/target}/release/slamkit
+if [[ -n ${SLAMKIT_BIN:-} ]]; then
+  slamkit=$SLAMKIT_BIN
+else
+  cargo build --release -q -p slamkit --manifest-path "$root/Cargo.toml"
+  slamkit=${CARGO_TARGET_DIR:-$root/target}/release/slamkit
+fi
 
 # name | log | relations | MRPT converter flags (from tools/mrpt/README.md)
 runs=(
