@@ -3,14 +3,17 @@
 //! depth image or the right image), the KLT pyramid or ORB features, and the detected features
 //! lifted to 3D.
 
+use std::sync::Arc;
+
 use nalgebra::{Point2, Point3};
 use slamkit_core::camera::Intrinsics;
 use slamkit_core::image::{GrayImage, Image, RgbImage};
+use slamkit_io::{RgbdImages, StereoImages};
 use slamkit_vision::color::{rgb_to_gray, rgb_to_lab_planes};
 use slamkit_vision::{shi_tomasi, Clahe, Descriptor, KltPyramid, Orb, StereoPair};
 
 use crate::config::{FrontendKind, VoConfig};
-use crate::depth::{depth_at, lift};
+use crate::depth::{depth_at, lift, DepthConfig};
 use crate::error::VoError;
 use crate::motion::StereoCamera;
 use crate::registration::RegisteredDepth;
@@ -38,6 +41,24 @@ pub enum SensorImages {
     },
 }
 
+impl From<RgbdImages> for SensorImages {
+    fn from(i: RgbdImages) -> Self {
+        Self::Rgbd {
+            color: i.color,
+            depth_m: i.depth_m,
+        }
+    }
+}
+
+impl From<StereoImages> for SensorImages {
+    fn from(i: StereoImages) -> Self {
+        Self::Stereo {
+            left: i.left,
+            right: i.right,
+        }
+    }
+}
+
 /// The camera rig: what the tracked image's pixels mean and where depth comes from.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Rig {
@@ -60,12 +81,78 @@ pub enum Rig {
 /// Where the 3D position of a pixel of the tracked image comes from.
 #[derive(Debug, Clone)]
 enum DepthSource {
-    /// Depth \[m\] registered to the tracked image.
-    Image(Image<f32>),
-    /// Depth \[m\] of an unregistered depth camera, read in the tracked (colour) image.
-    Registered(Box<RegisteredDepth>),
+    /// A depth image, shared with the map stage.
+    Image(DepthImage),
     /// A rectified pair, prepared once for all the points matched in it.
     Right(Box<StereoPair>),
+}
+
+/// The depth image of an RGB-D frame.
+#[derive(Debug, Clone)]
+enum DepthImage {
+    /// Depth \[m\] registered to the tracked image.
+    InColorCamera(Arc<Image<f32>>),
+    /// Depth \[m\] of an unregistered depth camera, read in the tracked (colour) image.
+    Warped(Arc<RegisteredDepth>),
+}
+
+/// What a frame adds to the world point map. Turning a depth image into points is the mapping
+/// stage's work ([`MapSource::points`], in the map thread), not the frame's preparation.
+#[derive(Debug, Clone, Default)]
+pub struct MapSource(MapInput);
+
+#[derive(Debug, Clone, Default)]
+enum MapInput {
+    #[default]
+    Nothing,
+    /// Points already known: the features with depth (stereo).
+    Points(ColoredPoints),
+    /// Every 4th pixel of a depth image with its colour.
+    Depth {
+        depth: DepthImage,
+        color: RgbImage,
+        camera: Intrinsics,
+        config: DepthConfig,
+    },
+}
+
+impl MapSource {
+    /// Camera-frame points (tracked camera) and their colours: every 4th depth pixel within the
+    /// configured depth range with its colour (RGB-D; for an unregistered pair the depth
+    /// camera's pixels moved into the colour camera), the features with depth (stereo, grey).
+    pub fn points(&self) -> ColoredPoints {
+        match &self.0 {
+            MapInput::Nothing => (Vec::new(), Vec::new()),
+            MapInput::Points(points) => points.clone(),
+            MapInput::Depth {
+                depth: DepthImage::Warped(depth),
+                color,
+                config,
+                ..
+            } => depth.samples(4, color, config),
+            MapInput::Depth {
+                depth: DepthImage::InColorCamera(depth),
+                color,
+                camera,
+                config,
+            } => {
+                let mut out = (Vec::new(), Vec::new());
+                for y in (0..depth.height()).step_by(4) {
+                    for x in (0..depth.width()).step_by(4) {
+                        let (Some(&z), Some(&c)) = (depth.get(x, y), color.get(x, y)) else {
+                            continue;
+                        };
+                        let z = f64::from(z);
+                        if z >= config.min_depth_m && z <= config.max_depth_m {
+                            out.0.push(lift(camera, Point2::new(x as f64, y as f64), z));
+                            out.1.push(c);
+                        }
+                    }
+                }
+                out
+            }
+        }
+    }
 }
 
 /// Detected features of a frame.
@@ -94,8 +181,8 @@ pub struct PreparedFrame {
     pub pyramid: Option<KltPyramid>,
     /// Detected features.
     pub features: Features,
-    /// Points for the world map (camera frame) and their colours.
-    pub map_points: ColoredPoints,
+    /// What the frame adds to the world map.
+    pub map_source: MapSource,
     gray: GrayImage,
     depth: DepthSource,
     baseline_m: f64,
@@ -160,12 +247,12 @@ impl Preprocessor {
                 }
                 let depth = match (&self.rig, &self.config.register_depth) {
                     (Rig::Rgbd { depth: k, .. }, Some(reg)) => {
-                        DepthSource::Registered(Box::new(RegisteredDepth::new(depth_m, k, reg)))
+                        DepthImage::Warped(Arc::new(RegisteredDepth::new(depth_m, k, reg)))
                     }
-                    _ => DepthSource::Image(depth_m),
+                    _ => DepthImage::InColorCamera(Arc::new(depth_m)),
                 };
                 let gray = self.gray_of(&color);
-                (gray, depth, Some(color))
+                (gray, DepthSource::Image(depth), Some(color))
             }
             SensorImages::Stereo { left, right } => {
                 if (left.width(), left.height()) != (right.width(), right.height()) {
@@ -183,8 +270,9 @@ impl Preprocessor {
         if (gray.width(), gray.height()) != (camera.width, camera.height) {
             return Err(FailReason::SizeMismatch);
         }
-        let mean = gray.data().iter().map(|&v| f64::from(v)).sum::<f64>()
-            / gray.data().len().max(1) as f64;
+        // an integer sum (vectorised; exact, as was the f64 sum of integers below 2^53)
+        let sum: u64 = gray.data().iter().map(|&v| u64::from(v)).sum();
+        let mean = sum as f64 / gray.data().len().max(1) as f64;
         if mean < self.config.min_mean_intensity {
             return Err(FailReason::TooDark { mean_grey: mean });
         }
@@ -198,13 +286,21 @@ impl Preprocessor {
             camera,
             pyramid: None,
             features: Features::default(),
-            map_points: (Vec::new(), Vec::new()),
+            map_source: MapSource::default(),
             gray,
             depth,
             baseline_m,
         };
         self.detect(&mut frame)?;
-        frame.map_points = frame.map_points(colors.as_ref(), &self.config);
+        frame.map_source = MapSource(match (&frame.depth, colors) {
+            (DepthSource::Image(depth), Some(color)) => MapInput::Depth {
+                depth: depth.clone(),
+                color,
+                camera,
+                config: self.config.depth.clone(),
+            },
+            _ => MapInput::Points(frame.feature_points()),
+        });
         Ok(frame)
     }
 
@@ -238,7 +334,7 @@ impl Preprocessor {
             }
         };
         let points = match (&frame.depth, &self.orb) {
-            (DepthSource::Image(_) | DepthSource::Registered(_), None) => Vec::new(),
+            (DepthSource::Image(_), None) => Vec::new(),
             _ => frame.lift(&pixels, &self.config)?,
         };
         frame.features = Features {
@@ -256,7 +352,7 @@ impl PreparedFrame {
     pub fn stereo_camera(&self, config: &VoConfig) -> StereoCamera {
         let baseline = match self.depth {
             DepthSource::Right(_) => self.baseline_m,
-            DepthSource::Image(_) | DepthSource::Registered(_) => config.depth.virtual_baseline_m,
+            DepthSource::Image(_) => config.depth.virtual_baseline_m,
         };
         StereoCamera {
             k: self.camera,
@@ -280,11 +376,11 @@ impl PreparedFrame {
     ) -> Result<Vec<Option<Point3<f64>>>, FailReason> {
         let k = &self.camera;
         match &self.depth {
-            DepthSource::Image(depth) => Ok(pixels
+            DepthSource::Image(DepthImage::InColorCamera(depth)) => Ok(pixels
                 .iter()
                 .map(|&px| depth_at(depth, px, &config.depth).map(|z| lift(k, px, z)))
                 .collect()),
-            DepthSource::Registered(depth) => Ok(pixels
+            DepthSource::Image(DepthImage::Warped(depth)) => Ok(pixels
                 .iter()
                 .map(|&px| depth.depth_at(px, &config.depth).map(|z| lift(k, px, z)))
                 .collect()),
@@ -306,42 +402,18 @@ impl PreparedFrame {
         }
     }
 
-    /// Map points: every 4th depth pixel with its colour (RGB-D; for an unregistered pair the
-    /// depth camera's pixels moved into the colour camera), the features with depth (stereo,
-    /// grey).
-    fn map_points(&self, color: Option<&RgbImage>, config: &VoConfig) -> ColoredPoints {
-        match (&self.depth, color) {
-            (DepthSource::Image(depth), Some(color)) => {
-                let mut out = (Vec::new(), Vec::new());
-                for y in (0..depth.height()).step_by(4) {
-                    for x in (0..depth.width()).step_by(4) {
-                        let (Some(&z), Some(&c)) = (depth.get(x, y), color.get(x, y)) else {
-                            continue;
-                        };
-                        let z = f64::from(z);
-                        if z >= config.depth.min_depth_m && z <= config.depth.max_depth_m {
-                            out.0
-                                .push(lift(&self.camera, Point2::new(x as f64, y as f64), z));
-                            out.1.push(c);
-                        }
-                    }
-                }
-                out
-            }
-            (DepthSource::Registered(depth), Some(color)) => depth.samples(4, color, &config.depth),
-            _ => {
-                let f = &self.features;
-                f.points
-                    .iter()
-                    .zip(&f.pixels)
-                    .filter_map(|(p, px)| {
-                        let g = *self
-                            .gray
-                            .get(px.x.round() as usize, px.y.round() as usize)?;
-                        p.map(|p| (p, [g; 3]))
-                    })
-                    .unzip()
-            }
-        }
+    /// The features with depth and their grey levels (the map points of a stereo frame).
+    fn feature_points(&self) -> ColoredPoints {
+        let f = &self.features;
+        f.points
+            .iter()
+            .zip(&f.pixels)
+            .filter_map(|(p, px)| {
+                let g = *self
+                    .gray
+                    .get(px.x.round() as usize, px.y.round() as usize)?;
+                p.map(|p| (p, [g; 3]))
+            })
+            .unzip()
     }
 }

@@ -1,5 +1,6 @@
 //! The threaded pipeline: four threads — read (decode images), prepare (preprocess, detect,
-//! describe, depth), track (motion estimation) and map (voxel point map) — joined by bounded
+//! describe, depth), track (motion estimation) and map (points from the depth image into the
+//! voxel point map) — joined by bounded
 //! crossbeam channels, so a slow stage holds the ones before it back instead of letting queues
 //! (and memory) grow.
 //!
@@ -23,11 +24,11 @@ use cpu_time::ThreadTime;
 use crossbeam_channel::{bounded, Receiver, Sender, TrySendError};
 use serde::Serialize;
 use slamkit_core::{Pose3, StageTimings, Trajectory};
-use slamkit_io::Dataset;
+use slamkit_io::{Dataset, IoError};
 
 use crate::config::VoConfig;
 use crate::error::VoError;
-use crate::frame::{ColoredPoints, PreparedFrame, Preprocessor, Rig, SensorImages};
+use crate::frame::{MapSource, PreparedFrame, Preprocessor, Rig, SensorImages};
 use crate::odometry::{FailReason, FrameStatus, Odometry};
 use crate::voxel_map::VoxelMap;
 
@@ -107,7 +108,7 @@ struct Prepared {
 /// Messages of the track → map channel.
 struct Tracked {
     world_from_camera: Pose3,
-    points: Option<ColoredPoints>,
+    points: Option<MapSource>,
 }
 
 /// Runs visual odometry over `dataset`; `progress` is called once per frame that reaches the
@@ -210,25 +211,22 @@ pub fn rig(dataset: &Dataset) -> Rig {
 }
 
 fn load(dataset: &Dataset, index: usize) -> Option<(f64, Result<SensorImages, String>)> {
-    let (timestamp, images) = match dataset {
-        Dataset::Rgbd(s) => {
-            let f = s.frames.get(index)?;
-            let images = s.load(f).map(|i| SensorImages::Rgbd {
-                color: i.color,
-                depth_m: i.depth_m,
-            });
-            (f.timestamp, images)
-        }
-        Dataset::Stereo(s) => {
-            let f = s.frames.get(index)?;
-            let images = s.load(f).map(|i| SensorImages::Stereo {
-                left: i.left,
-                right: i.right,
-            });
-            (f.timestamp, images)
-        }
-    };
-    Some((timestamp, images.map_err(|e| e.to_string())))
+    match dataset {
+        Dataset::Rgbd(s) => decode(s.frames.get(index)?, |f| f.timestamp, |f| s.load(f)),
+        Dataset::Stereo(s) => decode(s.frames.get(index)?, |f| f.timestamp, |f| s.load(f)),
+    }
+}
+
+/// The time stamp and decoded images of `frame`.
+fn decode<F, I: Into<SensorImages>>(
+    frame: &F,
+    timestamp: impl Fn(&F) -> f64,
+    load: impl Fn(&F) -> Result<I, IoError>,
+) -> Option<(f64, Result<SensorImages, String>)> {
+    Some((
+        timestamp(frame),
+        load(frame).map(Into::into).map_err(|e| e.to_string()),
+    ))
 }
 
 /// Reads every frame; returns (frames handed on, frames dropped, decoding times).
@@ -318,7 +316,7 @@ fn track_stage(
         let start = ThreadTime::now();
         let (status, points) = match p.frame {
             Ok(mut frame) => {
-                let points = std::mem::take(&mut frame.map_points);
+                let points = std::mem::take(&mut frame.map_source);
                 let status = odometry.track(frame);
                 let ok = !matches!(status, FrameStatus::Failed(_));
                 (status, ok.then_some(points))
@@ -361,8 +359,11 @@ fn track_stage(
 fn map_stage(map: &mut VoxelMap, rx: &Receiver<Tracked>) -> StageTimings {
     let mut timings = StageTimings::default();
     for t in rx {
-        if let Some((points, colors)) = &t.points {
-            timings.time("map", || map.insert(&t.world_from_camera, points, colors));
+        if let Some(source) = &t.points {
+            timings.time("map", || {
+                let (points, colors) = source.points();
+                map.insert(&t.world_from_camera, &points, &colors);
+            });
         }
     }
     timings
