@@ -213,3 +213,47 @@ fn invalid_config_is_rejected() {
         ));
     }
 }
+
+/// A scan of a straight wall 2.01 m ahead, 1 cm off the centre line of its 5 cm cells.
+fn wall_scan() -> LaserScan {
+    let (first, step, n) = (-0.6, 0.01, 121);
+    LaserScan {
+        timestamp: 0.0,
+        angle_min_rad: first,
+        angle_increment_rad: step,
+        ranges_m: (0..n)
+            .map(|i| 2.01 / (first + f64::from(i) * step).cos())
+            .collect(),
+        max_range_m: 30.0,
+        odometry: None,
+        base_from_laser: Pose2::identity(),
+    }
+}
+
+/// x of the pose the hill climb reaches from 3 cm behind the truth (the origin) on the wall.
+fn climbed_x(means: &hit_means::HitMeans, grid: &OccupancyGrid) -> f64 {
+    let config = proposal::ProposalConfig::default();
+    let scorer = GridScorer::new(grid, means, &config);
+    let scan = PreparedScan::new(&wall_scan(), 0.1, 30.0, 1, grid.resolution_m());
+    let start = Pose2::new(Vector2::new(-0.03, 0.0), 0.0);
+    scorer.climb(&scan, &start, &config).0.translation.vector.x
+}
+
+#[test]
+fn mean_hit_points_match_below_the_cell_size() {
+    let scan = wall_scan();
+    let mut grid = OccupancyGrid::new(OccupancyGridConfig::default()).unwrap();
+    let mut means = HitMeans::new(grid.origin_m(), grid.resolution_m(), 20.0);
+    for _ in 0..3 {
+        grid.insert_scan(&scan, &Pose2::identity()).unwrap();
+        means.insert_scan(&scan, &Pose2::identity());
+    }
+    let centres = HitMeans::new(grid.origin_m(), grid.resolution_m(), 20.0);
+    let (with_means, with_centres) = (climbed_x(&means, &grid), climbed_x(&centres, &grid));
+    // The cell centres sit at 2.025 m: matched to them the wall is found 1.5 cm short.
+    assert!(
+        with_means.abs() < 0.003,
+        "mean hit points: x = {with_means}"
+    );
+    assert!(with_centres > 0.008, "cell centres: x = {with_centres}");
+}
