@@ -122,8 +122,8 @@ fn scene(w: usize, h: usize, seed: u64) -> Image<f32> {
     let data = (0..w * h)
         .map(|i| {
             let (x, y) = ((i % w) as f32, (i / w) as f32);
-            if rng.gen_bool(0.05) {
-                0.0
+            if rng.gen_bool(0.05) || y == 7.0 {
+                0.0 // holes, and one row without any depth
             } else if x > 0.4 * w as f32 && x < 0.6 * w as f32 && y > 0.3 * h as f32 {
                 0.6 + 0.002 * y // a near box: occludes what lies to one side of it
             } else {
