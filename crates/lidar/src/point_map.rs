@@ -100,8 +100,18 @@ impl KeyframeMap {
         self.points.clear();
         self.normals.clear();
         let window = std::mem::take(&mut self.window);
-        for kf in window.iter().rev() {
-            self.add_points(kf);
+        if self.max_keyframes == 0 {
+            // A global map keeps its voxels for the keyframes added later.
+            for kf in window.iter().rev() {
+                self.add_points(kf);
+            }
+        } else {
+            thin_keyframes(
+                window.iter().rev(),
+                self.voxel_m,
+                &mut self.points,
+                &mut self.normals,
+            );
         }
         self.window = window;
         self.reindex();
@@ -168,15 +178,72 @@ fn add_keyframe_points(
     }
 }
 
+/// Voxel sets spanning at most this many voxels are a bitmap (a few megabytes at most); wider
+/// ones are hashed.
+const MAX_BITMAP_VOXELS: i128 = 1 << 25;
+
+/// The world points of `keyframes`, in order, whose voxel of side `voxel_m` is still empty,
+/// appended with their normals turned into the world frame: the points
+/// [`add_keyframe_points`] keeps, keyframe after keyframe from empty voxels, in the same order.
+/// The voxels are marked in a bitmap over the rectangle the points span rather than hashed
+/// (hashing was a twentieth of ICP-SLAM's time); a very wide rectangle falls back to hashing.
+fn thin_keyframes<'a>(
+    keyframes: impl Iterator<Item = &'a Keyframe>,
+    voxel_m: f64,
+    points: &mut Vec<Point2<f64>>,
+    normals: &mut Vec<Option<Vector2<f64>>>,
+) {
+    let keyframes: Vec<&Keyframe> = keyframes.collect();
+    let mut world = Vec::with_capacity(keyframes.iter().map(|kf| kf.points.len()).sum());
+    for kf in keyframes {
+        for (p, n) in kf.points.iter().zip(&kf.normals) {
+            let point = kf.world_from_base * p;
+            let normal = n.map(|n| kf.world_from_base.rotation * n);
+            world.push((point, normal, voxel_key(&point, voxel_m)));
+        }
+    }
+    let (lo, hi) = world.iter().fold(
+        ((i64::MAX, i64::MAX), (i64::MIN, i64::MIN)),
+        |(lo, hi), &(_, _, (i, j))| ((lo.0.min(i), lo.1.min(j)), (hi.0.max(i), hi.1.max(j))),
+    );
+    let width = i128::from(hi.0) - i128::from(lo.0) + 1;
+    let height = i128::from(hi.1) - i128::from(lo.1) + 1;
+    let mut keep = |(p, n, _): (Point2<f64>, Option<Vector2<f64>>, (i64, i64))| {
+        points.push(p);
+        normals.push(n);
+    };
+    if world.is_empty() || width * height > MAX_BITMAP_VOXELS {
+        let mut voxels = VoxelMap::default();
+        for item in world {
+            if voxels.insert(item.2, ()).is_none() {
+                keep(item);
+            }
+        }
+        return;
+    }
+    // The rectangle holds at most MAX_BITMAP_VOXELS voxels, so these fit in usize.
+    let (width, cells) = (width as usize, (width * height) as usize);
+    let mut marked = vec![0u64; cells.div_ceil(64)];
+    for item in world {
+        let (i, j) = item.2;
+        let at = (j.abs_diff(lo.1) as usize) * width + i.abs_diff(lo.0) as usize;
+        let Some(word) = marked.get_mut(at / 64) else {
+            continue;
+        };
+        let bit = 1u64 << (at % 64);
+        if *word & bit == 0 {
+            *word |= bit;
+            keep(item);
+        }
+    }
+}
+
 /// The points of `keyframes`, in order, thinned and indexed as a [`KeyframeMap`] holding all of
 /// them would (same points, same order), without copying the keyframes: a fixed map to match
 /// against, e.g. a loop-closure submap.
 pub fn index_keyframes(keyframes: &[Keyframe], voxel_m: f64) -> GridIndex {
-    let mut voxels = VoxelMap::default();
     let (mut points, mut normals) = (Vec::new(), Vec::new());
-    for kf in keyframes {
-        add_keyframe_points(kf, voxel_m, &mut voxels, &mut points, &mut normals);
-    }
+    thin_keyframes(keyframes.iter(), voxel_m, &mut points, &mut normals);
     GridIndex::new(points, Some(normals), voxel_m * GRID_CELL_VOXELS)
 }
 
@@ -222,6 +289,47 @@ mod tests {
         for i in 0..index.len() {
             assert_eq!(index.normal(i), map.index().normal(i));
         }
+    }
+
+    #[test]
+    fn bitmap_thinning_equals_hashing() {
+        // Scattered keyframes (bitmap), one far away (hash fallback), and NaN points.
+        let mut rng = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            rng ^= rng << 13;
+            rng ^= rng >> 7;
+            rng ^= rng << 17;
+            (rng % 10_000) as f64 / 1000.0 - 5.0
+        };
+        let mut kfs: Vec<Keyframe> = (0..6)
+            .map(|i| {
+                let pts: Vec<(f64, f64)> = (0..300).map(|_| (next(), next() * 0.3)).collect();
+                kf(i as f64 * 0.37, &pts)
+            })
+            .collect();
+        kfs[2].points[5] = Point2::new(f64::NAN, 1.0);
+        for far in [false, true] {
+            if far {
+                kfs[4].world_from_base = Pose2::new(Vector2::new(1e6, -2e6), 0.3);
+            }
+            for voxel in [0.05, 0.1, 0.5] {
+                let (mut points, mut normals) = (Vec::new(), Vec::new());
+                thin_keyframes(kfs.iter(), voxel, &mut points, &mut normals);
+                let (mut voxels, mut hp, mut hn) = (VoxelMap::default(), Vec::new(), Vec::new());
+                for k in &kfs {
+                    add_keyframe_points(k, voxel, &mut voxels, &mut hp, &mut hn);
+                }
+                assert!(points.len() < 1800, "thinned");
+                assert_eq!(points.len(), hp.len());
+                for (a, b) in points.iter().zip(&hp) {
+                    assert!(a == b || (a.x.is_nan() && b.x.is_nan()));
+                }
+                assert_eq!(normals, hn);
+            }
+        }
+        let (mut points, mut normals) = (Vec::new(), Vec::new());
+        thin_keyframes([].iter(), 0.05, &mut points, &mut normals);
+        assert!(points.is_empty());
     }
 
     #[test]
