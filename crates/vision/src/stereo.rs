@@ -29,6 +29,7 @@ use serde::{Deserialize, Serialize};
 use slamkit_core::image::GrayImage;
 
 use crate::error::VisionError;
+use crate::simd::dispatch_avx2;
 
 /// Sparse stereo settings.
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -149,33 +150,12 @@ impl RightImage {
     /// ZNCC of the left `patch` with the window of half side `r` centred at (`xr`, `y`); the
     /// caller keeps the window inside the image.
     fn zncc(&self, patch: &Patch, xr: usize, y: usize, r: usize) -> f32 {
-        let side = 2 * r + 1;
-        let (x0, y0, y1) = (xr - r, y - r, y + r + 1);
-        let padded = side.next_multiple_of(LANES);
-        // integer dot product over zero-padded rows (exact), in eight i32 lanes reduced once per
-        // window
-        let mut acc = [0i32; LANES];
-        for (row, prow) in (y0..y1).zip(patch.values.chunks_exact(padded)) {
-            let start = row * self.width + x0;
-            let Some(rrow) = self.values.get(start..start + padded) else {
-                return -1.0;
-            };
-            for (a, b) in prow.chunks_exact(LANES).zip(rrow.chunks_exact(LANES)) {
-                let (Ok(a), Ok(b)) = (<&[i16; LANES]>::try_from(a), <&[i16; LANES]>::try_from(b))
-                else {
-                    continue;
-                };
-                for l in 0..LANES {
-                    acc[l] += i32::from(a[l]) * i32::from(b[l]);
-                }
-            }
-        }
-        self.normalise(patch, acc.iter().sum(), x0, y0, side)
+        zncc_window(self, patch, xr, y, r)
     }
 
     /// ZNCC from the dot product of the left `patch` with the right window of side `side` whose
     /// top-left pixel is (`x0`, `y0`).
-    #[inline]
+    #[inline(always)]
     fn normalise(&self, patch: &Patch, dot: i32, x0: usize, y0: usize, side: usize) -> f32 {
         let n = (side * side) as f32;
         let stride = self.width + 1;
@@ -224,37 +204,92 @@ impl CoarsePair {
     fn zncc_run(
         &self,
         patch: &Patch,
-        (x_first, y): (usize, usize),
+        at: (usize, usize),
         r: usize,
         count: usize,
         scratch: (&mut Vec<f32>, &mut Vec<f32>),
     ) {
-        let (dots, out) = scratch;
-        let side = 2 * r + 1;
-        let padded = side.next_multiple_of(LANES);
-        let x0 = x_first - r;
-        let w = self.right.width;
-        dots.clear();
-        dots.resize(count, 0.0);
-        for (row, prow) in (y - r..=y + r).zip(patch.values.chunks_exact(padded)) {
-            let start = row * w + x0;
-            let Some(rrow) = self.right_f32.get(start..start + count + side - 1) else {
-                out.extend(std::iter::repeat(-1.0).take(count));
-                return;
-            };
-            for (c, &p) in prow.iter().take(side).enumerate() {
-                let p = f32::from(p);
-                for (d, &v) in dots.iter_mut().zip(&rrow[c..c + count]) {
-                    *d += p * v;
-                }
+        zncc_run_lanes(self, patch, at, r, count, scratch);
+    }
+}
+
+dispatch_avx2! {
+    /// [`CoarsePair::zncc_run`], compiled for AVX2 as well.
+    fn zncc_run_lanes => zncc_run_lanes_portable(
+        pair: &CoarsePair,
+        patch: &Patch,
+        at: (usize, usize),
+        r: usize,
+        count: usize,
+        scratch: (&mut Vec<f32>, &mut Vec<f32>),
+    ) -> ()
+}
+
+#[inline(always)]
+fn zncc_run_lanes_portable(
+    pair: &CoarsePair,
+    patch: &Patch,
+    (x_first, y): (usize, usize),
+    r: usize,
+    count: usize,
+    scratch: (&mut Vec<f32>, &mut Vec<f32>),
+) {
+    let (dots, out) = scratch;
+    let side = 2 * r + 1;
+    let padded = side.next_multiple_of(LANES);
+    let x0 = x_first - r;
+    let w = pair.right.width;
+    dots.clear();
+    dots.resize(count, 0.0);
+    for (row, prow) in (y - r..=y + r).zip(patch.values.chunks_exact(padded)) {
+        let start = row * w + x0;
+        let Some(rrow) = pair.right_f32.get(start..start + count + side - 1) else {
+            out.extend(std::iter::repeat(-1.0).take(count));
+            return;
+        };
+        for (c, &p) in prow.iter().take(side).enumerate() {
+            let p = f32::from(p);
+            for (d, &v) in dots.iter_mut().zip(&rrow[c..c + count]) {
+                *d += p * v;
             }
         }
-        out.extend(
-            dots.iter()
-                .enumerate()
-                .map(|(k, &dot)| self.right.normalise(patch, dot as i32, x0 + k, y - r, side)),
-        );
     }
+    out.extend(
+        dots.iter()
+            .enumerate()
+            .map(|(k, &dot)| pair.right.normalise(patch, dot as i32, x0 + k, y - r, side)),
+    );
+}
+
+dispatch_avx2! {
+    /// [`RightImage::zncc`], compiled for AVX2 as well.
+    fn zncc_window => zncc_window_portable(img: &RightImage, patch: &Patch, xr: usize, y: usize, r: usize) -> f32
+}
+
+#[inline(always)]
+fn zncc_window_portable(img: &RightImage, patch: &Patch, xr: usize, y: usize, r: usize) -> f32 {
+    let side = 2 * r + 1;
+    let (x0, y0, y1) = (xr - r, y - r, y + r + 1);
+    let padded = side.next_multiple_of(LANES);
+    // integer dot product over zero-padded rows (exact), in eight i32 lanes reduced once per
+    // window
+    let mut acc = [0i32; LANES];
+    for (row, prow) in (y0..y1).zip(patch.values.chunks_exact(padded)) {
+        let start = row * img.width + x0;
+        let Some(rrow) = img.values.get(start..start + padded) else {
+            return -1.0;
+        };
+        for (a, b) in prow.chunks_exact(LANES).zip(rrow.chunks_exact(LANES)) {
+            let (Ok(a), Ok(b)) = (<&[i16; LANES]>::try_from(a), <&[i16; LANES]>::try_from(b))
+            else {
+                continue;
+            };
+            for l in 0..LANES {
+                acc[l] += i32::from(a[l]) * i32::from(b[l]);
+            }
+        }
+    }
+    img.normalise(patch, acc.iter().sum(), x0, y0, side)
 }
 
 /// A rectified pair prepared for matching; keep it to match more points of the same pair (the

@@ -174,3 +174,27 @@ fn bad_input_is_an_error_or_none() {
         .unwrap();
     assert_eq!(got, vec![None, None, None]);
 }
+
+/// The AVX2 builds of the window ZNCC and of the coarse run equal the portable ones, bit for bit.
+#[test]
+fn zncc_builds_agree() {
+    let (l, r) = pair(7.25);
+    let pairing = StereoPair::new(l.clone(), r.clone()).unwrap();
+    let rad = 5;
+    let mut patch = Patch::with_side(2 * rad + 1);
+    for (x, y, d) in [(60, 30, 9), (70, 20, 3), (150, 50, 40), (40, 9, 30)] {
+        left_patch(&l, x, y, rad, &mut patch, 0.0).unwrap();
+        let a = zncc_window(&pairing.right, &patch, x - d, y, rad);
+        let b = zncc_window_portable(&pairing.right, &patch, x - d, y, rad);
+        assert_eq!(a.to_bits(), b.to_bits(), "({x}, {y}) d {d}");
+    }
+    let coarse = CoarsePair::new(&l, &r);
+    let rc = 3;
+    let mut patch = Patch::with_side(2 * rc + 1);
+    left_patch(&coarse.left, 40, 15, rc, &mut patch, 0.0).unwrap();
+    let (mut d1, mut o1, mut d2, mut o2) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    zncc_run_lanes(&coarse, &patch, (10, 15), rc, 30, (&mut d1, &mut o1));
+    zncc_run_lanes_portable(&coarse, &patch, (10, 15), rc, 30, (&mut d2, &mut o2));
+    assert_eq!(o1.len(), 30);
+    assert!(o1.iter().zip(&o2).all(|(a, b)| a.to_bits() == b.to_bits()));
+}
