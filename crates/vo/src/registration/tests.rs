@@ -4,15 +4,9 @@ use slamkit_io::{Dataset, DatasetFormat};
 use super::*;
 use crate::depth::depth_at;
 
+/// A 40 × 30 depth camera.
 fn k() -> Intrinsics {
-    Intrinsics {
-        fx: 100.0,
-        fy: 100.0,
-        cx: 20.0,
-        cy: 15.0,
-        width: 40,
-        height: 30,
-    }
+    Intrinsics::from_array([100.0, 100.0, 20.0, 15.0], 40, 30)
 }
 
 /// The whole image warped with the arithmetic of [`RegisteredDepth::project`] (the pipeline's
