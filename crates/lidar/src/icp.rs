@@ -2,11 +2,17 @@
 //! Medioni 1992; Censi, "An ICP variant using a point-to-line metric", ICRA 2008).
 //!
 //! Each iteration pairs every source point with its nearest target point within a distance
-//! threshold (k-d tree or uniform grid, see [`crate::nn`]), drops the points with none, weights the rest with a robust kernel (iteratively
-//! reweighted least squares; Zhang 1997 for the M-estimators) and takes one Gauss–Newton or
-//! Levenberg–Marquardt step on the pose. Like MRPT's `CICP`, the threshold starts wide and, each
-//! time the pose stops moving, is multiplied by a factor below one until it reaches its minimum:
-//! wide thresholds pull in a poor guess, narrow ones give a precise, outlier-free finish.
+//! threshold (k-d tree or uniform grid, see [`crate::nn`]), drops the points with none, weights
+//! the rest with a robust kernel (iteratively reweighted least squares; Zhang 1997 for the
+//! M-estimators) and takes one Gauss–Newton or Levenberg–Marquardt step on the pose. Like MRPT's
+//! `CICP`, the threshold starts wide and, each time the pose stops moving, is multiplied by a
+//! factor below one until it reaches its minimum: wide thresholds pull in a poor guess, narrow
+//! ones give a precise, outlier-free finish.
+//!
+//! Most iterations move the points by far less than the gap between their nearest and their
+//! second-nearest target point, so each point keeps its last answer while that gap proves it
+//! unchanged (the correspondence cache below): the pairs are exactly those a fresh search
+//! gives, at a fraction of the searches.
 //!
 //! The pose increment is applied on the left, in the target frame:
 //! `target_from_source ← exp(δ) · target_from_source`, so for a transformed point `q` the
