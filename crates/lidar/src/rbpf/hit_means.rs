@@ -49,8 +49,11 @@ impl MeanTile {
 }
 
 /// Cell holding `p` (grid origin `origin`, `inv_resolution` cells per metre) and `p`'s offset
-/// from that cell's centre, in cells; `None` for NaN or points far outside any grid.
-fn locate(
+/// from that cell's centre, in cells; `None` for NaN or points far outside any grid. Shared
+/// with the scan matcher, so both place a point in the same cell. (Rounds down without a
+/// `floor` call: the matcher calls this for every beam of every candidate pose.)
+#[inline]
+pub(super) fn locate(
     origin: &Vector2<f64>,
     inv_resolution: f64,
     p: &Point2<f64>,
@@ -60,8 +63,16 @@ fn locate(
     if !(x.abs() < 1e8 && y.abs() < 1e8) {
         return None;
     }
-    let (fx, fy) = (x.floor(), y.floor());
-    Some((fx as i32, fy as i32, x - fx - 0.5, y - fy - 0.5))
+    let round_down = |v: f64| {
+        let i = v as i32;
+        if f64::from(i) > v {
+            i - 1
+        } else {
+            i
+        }
+    };
+    let (cx, cy) = (round_down(x), round_down(y));
+    Some((cx, cy, x - f64::from(cx) - 0.5, y - f64::from(cy) - 0.5))
 }
 
 fn tile_key(cx: i32, cy: i32) -> [i32; 2] {

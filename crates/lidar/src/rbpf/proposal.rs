@@ -22,7 +22,7 @@
 //! particle's weight factor (eq. 19). A failed match (too few beams near an obstacle) falls back
 //! to sampling the motion model, weighted by the likelihood at the sample.
 
-use super::hit_means::{HitMeans, MeanReader};
+use super::hit_means::{locate, HitMeans, MeanReader};
 use crate::motion::{pose_difference, MotionModelConfig};
 use nalgebra::{Matrix3, Point2, Vector2, Vector3};
 use rand::Rng;
@@ -216,26 +216,10 @@ impl<'a> GridScorer<'a> {
             .is_some_and(|l| l > self.occupied_log_odds)
     }
 
-    /// Cell holding world point `p`, and `p`'s offset from that cell's centre in cells; `None`
-    /// for NaN or points far outside any grid. (Rounds down without a `floor` call: this runs
-    /// for every beam of every candidate pose.)
+    /// Cell holding world point `p`, and `p`'s offset from that cell's centre in cells.
     #[inline]
     fn cell(&self, p: &Point2<f64>) -> Option<(i32, i32, f64, f64)> {
-        let x = (p.x - self.origin_m.x) * self.inv_resolution;
-        let y = (p.y - self.origin_m.y) * self.inv_resolution;
-        if !(x.abs() < 1e8 && y.abs() < 1e8) {
-            return None;
-        }
-        let round_down = |v: f64| {
-            let i = v as i32;
-            if f64::from(i) > v {
-                i - 1
-            } else {
-                i
-            }
-        };
-        let (cx, cy) = (round_down(x), round_down(y));
-        Some((cx, cy, x - f64::from(cx) - 0.5, y - f64::from(cy) - 0.5))
+        locate(&self.origin_m, self.inv_resolution, p)
     }
 
     /// Log-odds of the `len` cells from `(x, y)` along +x, read as one tile row when they lie in
