@@ -245,14 +245,7 @@ mod tests {
     /// the fixed-point Gaussian kernels are symmetric, as the two passes assume.
     #[test]
     fn blur_matches_the_definition() {
-        let img = Image::from_vec(
-            41,
-            29,
-            (0..41 * 29u32)
-                .map(|i| (i.wrapping_mul(2_654_435_761) >> 24) as u8)
-                .collect(),
-        )
-        .unwrap();
+        let img = crate::test_images::hashed(41, 29);
         for (ksize, sigma) in [(1, 0.0), (3, 0.8), (5, 1.0), (7, 2.0), (9, 3.0), (13, 2.0)] {
             let k = fixed_kernel(&gaussian_kernel(ksize, sigma));
             assert!(k.iter().eq(k.iter().rev()), "{k:?}");
@@ -297,14 +290,7 @@ mod tests {
     /// The AVX2 build of the 3×3 gradients equals the portable one.
     #[test]
     fn gradient_builds_agree() {
-        let img = Image::from_vec(
-            37,
-            23,
-            (0..37 * 23u32)
-                .map(|i| (i.wrapping_mul(2_654_435_761) >> 24) as u8)
-                .collect(),
-        )
-        .unwrap();
+        let img = crate::test_images::hashed(37, 23);
         assert_eq!(sobel(&img), gradients_3x3_portable(&img, [1, 2]));
         assert_eq!(scharr(&img), gradients_3x3_portable(&img, [3, 10]));
     }

@@ -32,6 +32,8 @@ pub mod pyramid;
 mod round;
 mod simd;
 pub mod stereo;
+#[cfg(test)]
+mod test_images;
 
 pub use clahe::{Clahe, ClaheConfig};
 pub use corners::{shi_tomasi, Corner, ShiTomasiConfig};

@@ -403,14 +403,7 @@ mod tests {
     /// The two-pass descriptor equals the direct per-test rotation and sampling.
     #[test]
     fn describe_matches_the_direct_computation() {
-        let img = GrayImage::from_vec(
-            64,
-            64,
-            (0..64 * 64u32)
-                .map(|i| (i.wrapping_mul(2_654_435_761) >> 24) as u8)
-                .collect(),
-        )
-        .unwrap();
+        let img = crate::test_images::hashed(64, 64);
         let pattern = PatternPoints::new();
         for angle in [0.0f32, 0.3, 1.7, 3.2, 5.9] {
             let (s, c) = angle.sin_cos();

@@ -177,14 +177,7 @@ mod tests {
     #[test]
     fn pyr_down_builds_agree() {
         for (w, h) in [(53, 37), (64, 48), (7, 3)] {
-            let img = Image::from_vec(
-                w,
-                h,
-                (0..(w * h) as u32)
-                    .map(|i| (i.wrapping_mul(2_654_435_761) >> 24) as u8)
-                    .collect(),
-            )
-            .unwrap();
+            let img = crate::test_images::hashed(w, h);
             assert_eq!(pyr_down(&img), pyr_down_portable(&img), "{w}x{h}");
         }
     }
@@ -219,14 +212,7 @@ mod tests {
     /// enlarging, on one-pixel axes too.
     #[test]
     fn resize_matches_the_definition() {
-        let img = Image::from_vec(
-            53,
-            37,
-            (0..53 * 37u32)
-                .map(|i| (i.wrapping_mul(2_654_435_761) >> 24) as u8)
-                .collect(),
-        )
-        .unwrap();
+        let img = crate::test_images::hashed(53, 37);
         for (dw, dh) in [(44, 31), (37, 26), (80, 50), (1, 1), (53, 37), (7, 90)] {
             let want = resize_reference(&img, dw, dh);
             assert_eq!(resize_bilinear(&img, dw, dh).data(), want, "{dw}x{dh}");
