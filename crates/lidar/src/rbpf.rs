@@ -186,8 +186,8 @@ struct Particle {
     world_from_base: Pose2,
     grid: OccupancyGrid,
     /// Mean beam end point of each of `grid`'s cells, what the scan matcher scores against
-    /// (empty unless `proposal.mean_hit_points`).
-    means: HitMeans,
+    /// (`None` unless `proposal.mean_hit_points`).
+    means: Option<HitMeans>,
     log_weight: f64,
     /// Sum of the log weight factors over the particle's whole ancestry, kept through
     /// resampling (GMapping's `weightSum`): picks the output trajectory.
@@ -312,10 +312,11 @@ impl Rbpf {
         let mut grid = OccupancyGrid::new(self.config.grid.clone()).ok()?;
         grid.insert_scan(scan, &scan.base_from_laser).ok()?;
         let c = &self.config.grid;
-        let mut means = HitMeans::new(grid.origin_m(), c.resolution_m, c.max_usable_range_m);
-        if self.config.proposal.mean_hit_points {
+        let means = self.config.proposal.mean_hit_points.then(|| {
+            let mut means = HitMeans::new(grid.origin_m(), c.resolution_m, c.max_usable_range_m);
             means.insert_scan(scan, &scan.base_from_laser);
-        }
+            means
+        });
         let node = Arc::new(Node {
             scan: index,
             world_from_base: Pose2::identity(),
@@ -345,7 +346,7 @@ impl Rbpf {
         let started = Instant::now();
         let config = &self.config;
         for particle in &mut self.particles {
-            let scorer = GridScorer::new(&particle.grid, &particle.means, &config.proposal);
+            let scorer = GridScorer::new(&particle.grid, particle.means.as_ref(), &config.proposal);
             let p = propose(
                 &scorer,
                 prepared,
@@ -366,8 +367,8 @@ impl Rbpf {
             // A finite pose inside the addressable area always inserts; a failure leaves the
             // particle's map as it was.
             let inserted = particle.grid.insert_scan(scan, &world_from_laser).is_ok();
-            if inserted && config.proposal.mean_hit_points {
-                particle.means.insert_scan(scan, &world_from_laser);
+            if let Some(means) = particle.means.as_mut().filter(|_| inserted) {
+                means.insert_scan(scan, &world_from_laser);
             }
             particle.node = Arc::new(Node {
                 scan: index,
@@ -455,7 +456,9 @@ impl Rbpf {
                 .map(|p| p.grid.tile_stats().bytes)
                 .sum(),
             single_map_bytes: self.best().map_or(0, |p| p.grid.tile_stats().bytes),
-            hit_means_bytes: HitMeans::shared_bytes(self.particles.iter().map(|p| &p.means)),
+            hit_means_bytes: HitMeans::shared_bytes(
+                self.particles.iter().filter_map(|p| p.means.as_ref()),
+            ),
         }
     }
 

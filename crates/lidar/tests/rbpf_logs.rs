@@ -3,13 +3,12 @@
 //! it builds. Logs: Intel Research Lab and ACES (CARMEN text decoded from the benchmark's ROS
 //! bags), MIT CSAIL (original CARMEN log); see `$SLAMKIT_DATA/lidar2d/SOURCES.md`.
 //!
-//! All runs use 10 particles (MRPT's rbpf-slam example count) and seed 1, Intel and MIT CSAIL
-//! with the default configuration, ACES with updates every 0.5 m or 0.25 rad instead of 0.3 m or
-//! 0.2 rad. The bounds sit slightly above what they reach (measured with
-//! `slamkit lidar LOG --method rbpf --particles 10` and `slamkit eval relations`: Intel 0.0313 m,
-//! ACES 0.0694 m, MIT CSAIL 0.0419 m mean translational error). The targets (Intel
-//! ≤ 0.065, ACES ≤ 0.060, CSAIL ≤ 0.049 m) hold on Intel and CSAIL with this seed, and for the
-//! median over seeds 1–3 on ACES (with its thresholds) and CSAIL, not on Intel (BENCHMARKS.md).
+//! All runs use 10 particles (MRPT's rbpf-slam example count), seed 1 and the default
+//! configuration. The bounds are regression bounds slightly above what seed 1 reaches (measured
+//! with `slamkit lidar LOG --method rbpf --particles 10`, which prints the relations metric:
+//! Intel 0.0313 m, ACES 0.0900 m, MIT CSAIL 0.0419 m mean translational error). The issue's
+//! targets (Intel ≤ 0.065, ACES ≤ 0.060, CSAIL ≤ 0.049 m) hold for this seed on Intel and CSAIL
+//! only; over seeds 1–3 the medians meet CSAIL's alone (BENCHMARKS.md).
 //! Skipped when `SLAMKIT_DATA` is not set; run with `--release`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers fail loudly
 
@@ -26,17 +25,6 @@ fn config() -> RbpfConfig {
     RbpfConfig {
         particles: 10,
         ..RbpfConfig::default()
-    }
-}
-
-/// ACES's configuration: updates every 0.5 m or 0.25 rad (the default's 0.3 m and 0.2 rad leave
-/// its 300 m loop 2–4 m open; on Intel, seed 1, 0.5 m / 0.25 rad gave 0.0662 m and a map in which
-/// MCL settled 14 m off).
-fn aces_config() -> RbpfConfig {
-    RbpfConfig {
-        update_linear_m: 0.5,
-        update_angular_rad: 0.25,
-        ..config()
     }
 }
 
@@ -93,9 +81,9 @@ fn rbpf_aces() {
         &dir,
         "aces/aces.fromrosbag.clf.gz",
         "aces/aces.relations",
-        &aces_config(),
+        &config(),
     );
-    assert!(err < 0.075, "ACES mean error {err} m");
+    assert!(err < 0.095, "ACES mean error {err} m");
 }
 
 #[test]

@@ -8,6 +8,7 @@ use crate::commands::lidar::{load_config, print_summary, relations_metrics, Lida
 use crate::output::{peak_rss_bytes, prepare_out_dir, progress_bar, timings_json, write_report};
 use anyhow::Context;
 use serde_json::json;
+use slamkit_core::{StageTimings, Trajectory};
 use slamkit_io::carmen::CarmenLog;
 use slamkit_lidar::mcl::{run_mcl, MclConfig};
 use slamkit_lidar::rbpf::{run_rbpf, RbpfConfig};
@@ -35,26 +36,18 @@ pub fn run_rbpf_slam(args: &LidarArgs) -> anyhow::Result<()> {
         .context("no scan of the log was usable, so no map was built")?;
     write_map(map, &out)?;
     let s = &result.stats;
-    let report = json!({
+    let fields = json!({
         "input": args.log,
         "method": "rbpf",
         "config": config,
-        "frames": {
-            "read": log.scans.len(),
-            "processed": s.updates,
-            "skipped": s.scans_skipped,
-            "failed": s.matches_failed,
-            "unreadable_lines": log.skipped.len(),
-        },
         "stats": s,
-        "wall_seconds": started.elapsed().as_secs_f64(),
-        "timings_ms": timings_json(&result.timings),
-        "peak_rss_bytes": peak_rss_bytes(),
-        "metrics": relations_metrics(args, &result.trajectory)?,
     });
-    write_report(&out, &report)?;
-    print_summary(&out, &report);
-    Ok(())
+    let run = RunSummary {
+        frames: [s.updates, s.scans_skipped, s.matches_failed],
+        timings: &result.timings,
+        trajectory: &result.trajectory,
+    };
+    write_run_report(args, &out, started, &log, fields, &run)
 }
 
 /// Runs Monte Carlo localisation in the map `--localize` names.
@@ -73,32 +66,65 @@ pub fn run_localization(args: &LidarArgs, map_path: &Path) -> anyhow::Result<()>
     slamkit_io::trajectory_file::write_tum(&out.join("trajectory.tum"), &result.trajectory)?;
     write_map(&map, &out)?;
     let s = &result.stats;
-    let report = json!({
+    let fields = json!({
         "input": args.log,
         "map": map_path,
         "method": "mcl",
         "config": config,
-        "frames": {
-            "read": log.scans.len(),
-            "processed": s.updates,
-            "skipped": s.scans_skipped,
-            "failed": 0,
-            "unreadable_lines": log.skipped.len(),
-        },
         "stats": s,
         "final_estimate": result.estimates.last().copied().flatten(),
-        "wall_seconds": started.elapsed().as_secs_f64(),
-        "timings_ms": timings_json(&result.timings),
-        "peak_rss_bytes": peak_rss_bytes(),
-        "metrics": relations_metrics(args, &result.trajectory)?,
     });
-    write_report(&out, &report)?;
-    print_summary(&out, &report);
+    let run = RunSummary {
+        frames: [s.updates, s.scans_skipped, 0],
+        timings: &result.timings,
+        trajectory: &result.trajectory,
+    };
+    write_run_report(args, &out, started, &log, fields, &run)?;
     if let Some(scan) = s.first_converged_scan {
         println!("converged at scan {scan}");
     } else {
         println!("the particles never gathered within the convergence radius");
     }
+    Ok(())
+}
+
+/// What both paths report beside their own fields.
+struct RunSummary<'a> {
+    /// Scans processed (filter updates), skipped and failed.
+    frames: [usize; 3],
+    timings: &'a StageTimings,
+    trajectory: &'a Trajectory,
+}
+
+/// Writes report.json (`fields` plus the frame counts, time, memory and relations metric) and
+/// prints the summary.
+fn write_run_report(
+    args: &LidarArgs,
+    out: &Path,
+    started: Instant,
+    log: &CarmenLog,
+    mut fields: serde_json::Value,
+    run: &RunSummary<'_>,
+) -> anyhow::Result<()> {
+    let [processed, skipped, failed] = run.frames;
+    let shared = json!({
+        "frames": {
+            "read": log.scans.len(),
+            "processed": processed,
+            "skipped": skipped,
+            "failed": failed,
+            "unreadable_lines": log.skipped.len(),
+        },
+        "wall_seconds": started.elapsed().as_secs_f64(),
+        "timings_ms": timings_json(run.timings),
+        "peak_rss_bytes": peak_rss_bytes(),
+        "metrics": relations_metrics(args, run.trajectory)?,
+    });
+    if let (Some(report), serde_json::Value::Object(shared)) = (fields.as_object_mut(), shared) {
+        report.extend(shared);
+    }
+    write_report(out, &fields)?;
+    print_summary(out, &fields);
     Ok(())
 }
 

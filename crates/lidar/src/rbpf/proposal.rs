@@ -173,7 +173,7 @@ const MAX_ROW: usize = 17;
 /// Scores scans against one grid; see the module documentation.
 pub struct GridScorer<'a> {
     grid: &'a OccupancyGrid,
-    means: &'a HitMeans,
+    means: Option<&'a HitMeans>,
     occupied_log_odds: f32,
     kernel: i32,
     table: SquaredDistanceTable,
@@ -185,8 +185,13 @@ pub struct GridScorer<'a> {
 
 impl<'a> GridScorer<'a> {
     /// A scorer over `grid`, whose cells' mean hit points are `means` (a cell without a
-    /// recorded mean is scored at its centre, so empty `means` score against cell centres).
-    pub fn new(grid: &'a OccupancyGrid, means: &'a HitMeans, config: &ProposalConfig) -> Self {
+    /// recorded mean is scored at its centre); `None` scores every cell at its centre without
+    /// looking anything up.
+    pub fn new(
+        grid: &'a OccupancyGrid,
+        means: Option<&'a HitMeans>,
+        config: &ProposalConfig,
+    ) -> Self {
         let kernel = config.kernel_cells.min(8) as i32;
         let model = LikelihoodFieldConfig {
             sigma_hit_m: config.sigma_m,
@@ -242,7 +247,7 @@ impl<'a> GridScorer<'a> {
         &self,
         hit: Point2<f64>,
         back: Point2<f64>,
-        means: &mut MeanReader<'_>,
+        means: &mut Option<MeanReader<'_>>,
     ) -> Option<f64> {
         let (hx, hy, fx, fy) = self.cell(&hit)?;
         let (bx, by, _, _) = self.cell(&back)?;
@@ -256,7 +261,9 @@ impl<'a> GridScorer<'a> {
                 if l <= self.occupied_log_odds || self.occupied(bx + dx, by + dy) {
                     continue;
                 }
-                let (mx, my) = means.offset(hx + dx, hy + dy);
+                let (mx, my) = means
+                    .as_mut()
+                    .map_or((0.0, 0.0), |m| m.offset(hx + dx, hy + dy));
                 let (ex, ey) = (f64::from(dx) + mx - fx, f64::from(dy) + my - fy);
                 best = best.min(ex * ex + ey * ey);
             }
@@ -270,7 +277,7 @@ impl<'a> GridScorer<'a> {
             log_likelihood: 0.0,
             matched: 0,
         };
-        let mut means = self.means.reader();
+        let mut means = self.means.map(HitMeans::reader);
         for (hit, back) in scan.hits.iter().zip(&scan.backs) {
             match self.nearest_squared(world_from_base * hit, world_from_base * back, &mut means) {
                 Some(d2) => {

@@ -231,7 +231,7 @@ fn wall_scan() -> LaserScan {
 }
 
 /// x of the pose the hill climb reaches from 3 cm behind the truth (the origin) on the wall.
-fn climbed_x(means: &hit_means::HitMeans, grid: &OccupancyGrid) -> f64 {
+fn climbed_x(means: Option<&hit_means::HitMeans>, grid: &OccupancyGrid) -> f64 {
     let config = proposal::ProposalConfig::default();
     let scorer = GridScorer::new(grid, means, &config);
     let scan = PreparedScan::new(&wall_scan(), 0.1, 30.0, 1, grid.resolution_m());
@@ -249,7 +249,12 @@ fn mean_hit_points_match_below_the_cell_size() {
         means.insert_scan(&scan, &Pose2::identity());
     }
     let centres = HitMeans::new(grid.origin_m(), grid.resolution_m(), 20.0);
-    let (with_means, with_centres) = (climbed_x(&means, &grid), climbed_x(&centres, &grid));
+    let (with_means, with_centres) = (
+        climbed_x(Some(&means), &grid),
+        climbed_x(Some(&centres), &grid),
+    );
+    // No store at all scores at the cell centres, as an empty one does.
+    assert_eq!(climbed_x(None, &grid), with_centres);
     // The cell centres sit at 2.025 m: matched to them the wall is found 1.5 cm short.
     assert!(
         with_means.abs() < 0.003,
