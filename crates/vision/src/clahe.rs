@@ -211,61 +211,55 @@ fn column_taps(w: usize, tiles: usize, tile_w: usize) -> ColumnTaps {
 
 dispatch_avx2! {
     /// Blends the four nearest tiles' tables per pixel (OpenCV's float formula).
-    fn interpolate => interpolate_portable(
+    fn interpolate(
         img: &GrayImage,
         luts: &[u8],
         tiles: (usize, usize),
         tile_size: (usize, usize),
         out: &mut [u8],
-    ) -> ()
-}
-
-/// [`interpolate`]'s body. Per row, the four table look-ups of every pixel are gathered first
-/// (scalar loads), then the blend runs over the row in `f32` lanes, with the same operations in
-/// the same order as a per-pixel loop.
-#[inline(always)]
-fn interpolate_portable(
-    img: &GrayImage,
-    luts: &[u8],
-    (tx, ty): (usize, usize),
-    (tw, th): (usize, usize),
-    out: &mut [u8],
-) {
-    let w = img.width();
-    let cols = column_taps(w, tx, tw);
-    let inv_th = 1.0f32 / th as f32;
-    let mut taps = [vec![0u8; w], vec![0u8; w], vec![0u8; w], vec![0u8; w]];
-    for (y, (src, dst)) in img
-        .data()
-        .chunks_exact(w)
-        .zip(out.chunks_exact_mut(w))
-        .enumerate()
-    {
-        let f = y as f32 * inv_th - 0.5;
-        let t1 = f.floor();
-        let ya = f - t1;
-        let ya1 = 1.0 - ya;
-        let t1 = t1 as isize;
-        let row1 = t1.max(0) as usize * tx * BINS;
-        let row2 = ((t1 + 1) as usize).min(ty - 1) * tx * BINS;
-        let (p1, p2) = (&luts[row1..row1 + tx * BINS], &luts[row2..row2 + tx * BINS]);
-        let [t11, t12, t21, t22] = &mut taps;
-        let cols_of = cols.lut1.iter().zip(&cols.lut2);
-        let gathered = t11
-            .iter_mut()
-            .zip(t12.iter_mut())
-            .zip(t21.iter_mut().zip(t22.iter_mut()));
-        for (((a, b), (c, d)), (&v, (&i1, &i2))) in gathered.zip(src.iter().zip(cols_of)) {
-            let v = usize::from(v);
-            let (a1, a2) = (i1 + v, i2 + v);
-            (*a, *b, *c, *d) = (p1[a1], p1[a2], p2[a1], p2[a2]);
-        }
-        let blend = t11.iter().zip(t12.iter()).zip(t21.iter().zip(t22.iter()));
-        for (d, (((&a, &b), (&c, &e)), &xa)) in dst.iter_mut().zip(blend.zip(&cols.wa)) {
-            let xa1 = 1.0 - xa;
-            let top = f32::from(a) * xa1 + f32::from(b) * xa;
-            let bottom = f32::from(c) * xa1 + f32::from(e) * xa;
-            *d = round_to_u8(top * ya1 + bottom * ya);
+    );
+    /// [`interpolate`]'s body. Per row, the four table look-ups of every pixel are gathered first
+    /// (scalar loads), then the blend runs over the row in `f32` lanes, with the same operations in
+    /// the same order as a per-pixel loop.
+    portable interpolate_portable {
+        let (tx, ty) = tiles;
+        let (tw, th) = tile_size;
+        let w = img.width();
+        let cols = column_taps(w, tx, tw);
+        let inv_th = 1.0f32 / th as f32;
+        let mut taps = [vec![0u8; w], vec![0u8; w], vec![0u8; w], vec![0u8; w]];
+        for (y, (src, dst)) in img
+            .data()
+            .chunks_exact(w)
+            .zip(out.chunks_exact_mut(w))
+            .enumerate()
+        {
+            let f = y as f32 * inv_th - 0.5;
+            let t1 = f.floor();
+            let ya = f - t1;
+            let ya1 = 1.0 - ya;
+            let t1 = t1 as isize;
+            let row1 = t1.max(0) as usize * tx * BINS;
+            let row2 = ((t1 + 1) as usize).min(ty - 1) * tx * BINS;
+            let (p1, p2) = (&luts[row1..row1 + tx * BINS], &luts[row2..row2 + tx * BINS]);
+            let [t11, t12, t21, t22] = &mut taps;
+            let cols_of = cols.lut1.iter().zip(&cols.lut2);
+            let gathered = t11
+                .iter_mut()
+                .zip(t12.iter_mut())
+                .zip(t21.iter_mut().zip(t22.iter_mut()));
+            for (((a, b), (c, d)), (&v, (&i1, &i2))) in gathered.zip(src.iter().zip(cols_of)) {
+                let v = usize::from(v);
+                let (a1, a2) = (i1 + v, i2 + v);
+                (*a, *b, *c, *d) = (p1[a1], p1[a2], p2[a1], p2[a2]);
+            }
+            let blend = t11.iter().zip(t12.iter()).zip(t21.iter().zip(t22.iter()));
+            for (d, (((&a, &b), (&c, &e)), &xa)) in dst.iter_mut().zip(blend.zip(&cols.wa)) {
+                let xa1 = 1.0 - xa;
+                let top = f32::from(a) * xa1 + f32::from(b) * xa;
+                let bottom = f32::from(c) * xa1 + f32::from(e) * xa;
+                *d = round_to_u8(top * ya1 + bottom * ya);
+            }
         }
     }
 }

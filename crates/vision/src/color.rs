@@ -22,22 +22,20 @@ const GRAY_WEIGHTS: [u32; 3] = [4899, 9617, 1868];
 
 dispatch_avx2! {
     /// Converts RGB to 8-bit grey with BT.601 weights, rounding like OpenCV.
-    pub fn rgb_to_gray => rgb_to_gray_portable(rgb: &RgbImage) -> GrayImage
-}
-
-/// [`rgb_to_gray`]'s body: 16-bit operands and exact 32-bit sums, which vectorise as
-/// multiply–adds of 16-bit pairs.
-#[inline(always)]
-fn rgb_to_gray_portable(rgb: &RgbImage) -> GrayImage {
-    let [wr, wg, wb] = GRAY_WEIGHTS.map(|w| w as i16);
-    let mut data = vec![0u8; rgb.data().len()];
-    for (d, &[r, g, b]) in data.iter_mut().zip(rgb.data()) {
-        let y = i32::from(r as i16) * i32::from(wr)
-            + i32::from(g as i16) * i32::from(wg)
-            + i32::from(b as i16) * i32::from(wb);
-        *d = ((y + (1 << 13)) >> 14) as u8;
+    pub fn rgb_to_gray(rgb: &RgbImage) -> GrayImage;
+    /// [`rgb_to_gray`]'s body: 16-bit operands and exact 32-bit sums, which vectorise as
+    /// multiply–adds of 16-bit pairs.
+    portable rgb_to_gray_portable {
+        let [wr, wg, wb] = GRAY_WEIGHTS.map(|w| w as i16);
+        let mut data = vec![0u8; rgb.data().len()];
+        for (d, &[r, g, b]) in data.iter_mut().zip(rgb.data()) {
+            let y = i32::from(r as i16) * i32::from(wr)
+                + i32::from(g as i16) * i32::from(wg)
+                + i32::from(b as i16) * i32::from(wb);
+            *d = ((y + (1 << 13)) >> 14) as u8;
+        }
+        image_like(rgb, data)
     }
-    image_like(rgb, data)
 }
 
 /// Builds an image of the same size as `like` from a buffer of exactly `width * height` pixels.
@@ -324,43 +322,39 @@ pub fn lab_to_rgb(lab: &LabImage) -> RgbImage {
 dispatch_avx2! {
     /// Splits RGB into the 8-bit L channel and the (a, b) pair per pixel, for methods (CLAHE)
     /// that work on lightness only.
-    pub fn rgb_to_lab_planes => rgb_to_lab_planes_portable(rgb: &RgbImage) -> (GrayImage, Image<[u8; 2]>)
-}
-
-#[inline(always)]
-fn rgb_to_lab_planes_portable(rgb: &RgbImage) -> (GrayImage, Image<[u8; 2]>) {
-    let t = LabTables::get();
-    let n = rgb.data().len();
-    let (mut l, mut ab) = (vec![0u8; n], vec![[0u8; 2]; n]);
-    let mut lab = [[0u8; CHUNK]; 3];
-    let chunks = rgb.data().chunks(CHUNK).zip(l.chunks_mut(CHUNK));
-    for ((src, l), ab) in chunks.zip(ab.chunks_mut(CHUNK)) {
-        t.rgb_to_lab_chunk(src, &mut lab);
-        l.copy_from_slice(&lab[0][..l.len()]);
-        for ((o, &a), &b) in ab.iter_mut().zip(&lab[1]).zip(&lab[2]) {
-            *o = [a, b];
+    pub fn rgb_to_lab_planes(rgb: &RgbImage) -> (GrayImage, Image<[u8; 2]>);
+    portable rgb_to_lab_planes_portable {
+        let t = LabTables::get();
+        let n = rgb.data().len();
+        let (mut l, mut ab) = (vec![0u8; n], vec![[0u8; 2]; n]);
+        let mut lab = [[0u8; CHUNK]; 3];
+        let chunks = rgb.data().chunks(CHUNK).zip(l.chunks_mut(CHUNK));
+        for ((src, l), ab) in chunks.zip(ab.chunks_mut(CHUNK)) {
+            t.rgb_to_lab_chunk(src, &mut lab);
+            l.copy_from_slice(&lab[0][..l.len()]);
+            for ((o, &a), &b) in ab.iter_mut().zip(&lab[1]).zip(&lab[2]) {
+                *o = [a, b];
+            }
         }
+        (image_like(rgb, l), image_like(rgb, ab))
     }
-    (image_like(rgb, l), image_like(rgb, ab))
 }
 
 dispatch_avx2! {
     /// Inverse of [`rgb_to_lab_planes`]; `l` and `ab` must have the same size (else `None`).
-    pub fn lab_planes_to_rgb => lab_planes_to_rgb_portable(l: &GrayImage, ab: &Image<[u8; 2]>) -> Option<RgbImage>
-}
-
-#[inline(always)]
-fn lab_planes_to_rgb_portable(l: &GrayImage, ab: &Image<[u8; 2]>) -> Option<RgbImage> {
-    if l.width() != ab.width() || l.height() != ab.height() {
-        return None;
+    pub fn lab_planes_to_rgb(l: &GrayImage, ab: &Image<[u8; 2]>) -> Option<RgbImage>;
+    portable lab_planes_to_rgb_portable {
+        if l.width() != ab.width() || l.height() != ab.height() {
+            return None;
+        }
+        let t = LabTables::get();
+        let mut data = vec![[0u8; 3]; l.data().len()];
+        let chunks = l.data().chunks(CHUNK).zip(ab.data().chunks(CHUNK));
+        for ((l, ab), out) in chunks.zip(data.chunks_mut(CHUNK)) {
+            t.lab_to_rgb_chunk(l, ab, out);
+        }
+        Some(image_like(l, data))
     }
-    let t = LabTables::get();
-    let mut data = vec![[0u8; 3]; l.data().len()];
-    let chunks = l.data().chunks(CHUNK).zip(ab.data().chunks(CHUNK));
-    for ((l, ab), out) in chunks.zip(data.chunks_mut(CHUNK)) {
-        t.lab_to_rgb_chunk(l, ab, out);
-    }
-    Some(image_like(l, data))
 }
 
 #[cfg(test)]

@@ -47,53 +47,51 @@ pub struct FastCorner {
 dispatch_avx2! {
     /// Detects FAST-9 corners at least `border` (≥ 3) pixels from every edge, optionally with
     /// 3×3 non-maximum suppression. Corners come row by row, left to right.
-    pub fn fast9 => fast9_portable(img: &GrayImage, threshold: u8, border: usize, nonmax: bool) -> Vec<FastCorner>
+    pub fn fast9(img: &GrayImage, threshold: u8, border: usize, nonmax: bool) -> Vec<FastCorner>;
+    portable fast9_portable {
+        let (w, h) = (img.width(), img.height());
+        let border = border.max(3);
+        if w <= 2 * border || h <= 2 * border {
+            return Vec::new();
+        }
+        let mut rows = RowDetector::new(img, border, threshold);
+        let mut corners = Vec::new();
+        if !nonmax {
+            for y in border..h - border {
+                rows.detect(y, &mut corners, &mut []);
+            }
+            return corners;
+        }
+        // Scores (+1, 0 = no corner) of the last three rows, row y in slot y mod 3: a row's corners
+        // are suppressed once the row below it is scored.
+        let mut scores = vec![0u8; 3 * w];
+        let (mut above, mut current) = (Vec::new(), Vec::new());
+        for y in border..=h - border {
+            let slot = (y % 3) * w;
+            scores[slot..slot + w].fill(0);
+            if y < h - border {
+                rows.detect(y, &mut current, &mut scores[slot..slot + w]);
+            }
+            let row = |dy: usize| {
+                let s = ((y + 3 - dy) % 3) * w;
+                &scores[s..s + w]
+            };
+            let (up, mid, dn) = (row(2), row(1), row(0));
+            corners.extend(above.drain(..).filter(|k: &FastCorner| {
+                let (x, s) = (k.x, mid[k.x]);
+                let beaten = |r: &[u8]| r[x - 1] >= s || r[x] >= s || r[x + 1] >= s;
+                !(beaten(up) || beaten(dn) || mid[x - 1] >= s || mid[x + 1] >= s)
+            }));
+            std::mem::swap(&mut above, &mut current);
+        }
+        corners
+    }
 }
 
 /// Pixels tested together.
 const LANES: usize = 32;
 type Lanes = [u8; LANES];
 const ZERO: Lanes = [0; LANES];
-
-#[inline(always)]
-fn fast9_portable(img: &GrayImage, threshold: u8, border: usize, nonmax: bool) -> Vec<FastCorner> {
-    let (w, h) = (img.width(), img.height());
-    let border = border.max(3);
-    if w <= 2 * border || h <= 2 * border {
-        return Vec::new();
-    }
-    let mut rows = RowDetector::new(img, border, threshold);
-    let mut corners = Vec::new();
-    if !nonmax {
-        for y in border..h - border {
-            rows.detect(y, &mut corners, &mut []);
-        }
-        return corners;
-    }
-    // Scores (+1, 0 = no corner) of the last three rows, row y in slot y mod 3: a row's corners
-    // are suppressed once the row below it is scored.
-    let mut scores = vec![0u8; 3 * w];
-    let (mut above, mut current) = (Vec::new(), Vec::new());
-    for y in border..=h - border {
-        let slot = (y % 3) * w;
-        scores[slot..slot + w].fill(0);
-        if y < h - border {
-            rows.detect(y, &mut current, &mut scores[slot..slot + w]);
-        }
-        let row = |dy: usize| {
-            let s = ((y + 3 - dy) % 3) * w;
-            &scores[s..s + w]
-        };
-        let (up, mid, dn) = (row(2), row(1), row(0));
-        corners.extend(above.drain(..).filter(|k: &FastCorner| {
-            let (x, s) = (k.x, mid[k.x]);
-            let beaten = |r: &[u8]| r[x - 1] >= s || r[x] >= s || r[x + 1] >= s;
-            !(beaten(up) || beaten(dn) || mid[x - 1] >= s || mid[x + 1] >= s)
-        }));
-        std::mem::swap(&mut above, &mut current);
-    }
-    corners
-}
 
 /// Per-row FAST-9 of one image, with its circle offsets and a zero-padded copy for the chunks
 /// that would run past the image.

@@ -72,57 +72,56 @@ pub fn gaussian_blur(img: &GrayImage, ksize: usize, sigma: f64) -> Result<GrayIm
 dispatch_avx2! {
     /// Convolves with the symmetric kernel `k` along x then y (weights sum to 256 each),
     /// rounding once at the end.
-    fn separable_u8 => separable_u8_portable(img: &GrayImage, k: &[u16]) -> GrayImage
-}
-
-/// [`separable_u8`]'s body. The kernel is symmetric (Gaussian), so each pass adds the two
-/// samples that share a weight before multiplying: `r + 1` products per pixel instead of `2r + 1`.
-#[inline(always)]
-fn separable_u8_portable(img: &GrayImage, k: &[u16]) -> GrayImage {
-    let (w, h) = (img.width(), img.height());
-    if w == 0 || h == 0 || k.is_empty() {
-        return img.clone();
-    }
-    let r = k.len() / 2;
-    let (pairs, centre) = (&k[..r], k[r]);
-    // Horizontal: Σ kⱼ·p ≤ 256·255 fits u16; the partial sums only grow, so wrapping u16
-    // arithmetic is exact.
-    let mut tmp = vec![0u16; w * h];
-    let mut padded = Vec::with_capacity(w + 2 * r);
-    for (src, dst) in img.data().chunks_exact(w).zip(tmp.chunks_exact_mut(w)) {
-        pad_row(src, r, &mut padded);
-        for (d, &p) in dst.iter_mut().zip(&padded[r..r + w]) {
-            *d = centre.wrapping_mul(u16::from(p));
+    fn separable_u8(img: &GrayImage, k: &[u16]) -> GrayImage;
+    /// [`separable_u8`]'s body. The kernel is symmetric (Gaussian), so each pass adds the two
+    /// samples that share a weight before multiplying: `r + 1` products per pixel instead of
+    /// `2r + 1`.
+    portable separable_u8_portable {
+        let (w, h) = (img.width(), img.height());
+        if w == 0 || h == 0 || k.is_empty() {
+            return img.clone();
         }
-        for (j, &wk) in pairs.iter().enumerate() {
-            let (left, right) = (&padded[j..j + w], &padded[2 * r - j..2 * r - j + w]);
-            for ((d, &a), &b) in dst.iter_mut().zip(left).zip(right) {
-                *d = d.wrapping_add(wk.wrapping_mul(u16::from(a) + u16::from(b)));
+        let r = k.len() / 2;
+        let (pairs, centre) = (&k[..r], k[r]);
+        // Horizontal: Σ kⱼ·p ≤ 256·255 fits u16; the partial sums only grow, so wrapping u16
+        // arithmetic is exact.
+        let mut tmp = vec![0u16; w * h];
+        let mut padded = Vec::with_capacity(w + 2 * r);
+        for (src, dst) in img.data().chunks_exact(w).zip(tmp.chunks_exact_mut(w)) {
+            pad_row(src, r, &mut padded);
+            for (d, &p) in dst.iter_mut().zip(&padded[r..r + w]) {
+                *d = centre.wrapping_mul(u16::from(p));
+            }
+            for (j, &wk) in pairs.iter().enumerate() {
+                let (left, right) = (&padded[j..j + w], &padded[2 * r - j..2 * r - j + w]);
+                for ((d, &a), &b) in dst.iter_mut().zip(left).zip(right) {
+                    *d = d.wrapping_add(wk.wrapping_mul(u16::from(a) + u16::from(b)));
+                }
             }
         }
-    }
-    let mut out = vec![0u8; w * h];
-    let mut acc = vec![0u32; w];
-    let row = |dy: isize, y: usize| {
-        let sy = reflect101(y as isize + dy, h);
-        &tmp[sy * w..(sy + 1) * w]
-    };
-    for (y, dst) in out.chunks_exact_mut(w).enumerate() {
-        let mid = row(0, y);
-        for (a, &v) in acc.iter_mut().zip(mid) {
-            *a = (1 << 15) + u32::from(centre) * u32::from(v);
-        }
-        for (j, &wk) in pairs.iter().enumerate() {
-            let (up, dn) = (row(j as isize - r as isize, y), row((r - j) as isize, y));
-            for ((a, &u), &d) in acc.iter_mut().zip(up).zip(dn) {
-                *a += u32::from(wk) * (u32::from(u) + u32::from(d));
+        let mut out = vec![0u8; w * h];
+        let mut acc = vec![0u32; w];
+        let row = |dy: isize, y: usize| {
+            let sy = reflect101(y as isize + dy, h);
+            &tmp[sy * w..(sy + 1) * w]
+        };
+        for (y, dst) in out.chunks_exact_mut(w).enumerate() {
+            let mid = row(0, y);
+            for (a, &v) in acc.iter_mut().zip(mid) {
+                *a = (1 << 15) + u32::from(centre) * u32::from(v);
+            }
+            for (j, &wk) in pairs.iter().enumerate() {
+                let (up, dn) = (row(j as isize - r as isize, y), row((r - j) as isize, y));
+                for ((a, &u), &d) in acc.iter_mut().zip(up).zip(dn) {
+                    *a += u32::from(wk) * (u32::from(u) + u32::from(d));
+                }
+            }
+            for (d, &a) in dst.iter_mut().zip(&acc) {
+                *d = (a >> 16) as u8;
             }
         }
-        for (d, &a) in dst.iter_mut().zip(&acc) {
-            *d = (a >> 16) as u8;
-        }
+        image_like(img, out)
     }
-    image_like(img, out)
 }
 
 /// 3×3 Sobel derivatives (`cv::Sobel(src, CV_16S, 1, 0, 3)` and `(0, 1)`).
@@ -137,55 +136,54 @@ pub fn scharr(img: &GrayImage) -> Gradients {
 
 dispatch_avx2! {
     /// Derivative `\[-1 0 1\]` along one axis, smoothing `\[s0 s1 s0\]` along the other.
-    fn gradients_3x3 => gradients_3x3_portable(img: &GrayImage, s: [i16; 2]) -> Gradients
-}
-
-#[inline(always)]
-fn gradients_3x3_portable(img: &GrayImage, [s0, s1]: [i16; 2]) -> Gradients {
-    let (w, h) = (img.width(), img.height());
-    let mut gx = vec![0i16; w * h];
-    let mut gy = vec![0i16; w * h];
-    if w > 0 && h > 0 {
-        let pw = w + 2;
-        let mut padded = vec![0i16; pw * h];
-        let mut buf = Vec::with_capacity(pw);
-        for (src, dst) in img.data().chunks_exact(w).zip(padded.chunks_exact_mut(pw)) {
-            pad_row(src, 1, &mut buf);
-            for (d, &p) in dst.iter_mut().zip(&buf) {
-                *d = i16::from(p);
+    fn gradients_3x3(img: &GrayImage, s: [i16; 2]) -> Gradients;
+    portable gradients_3x3_portable {
+        let [s0, s1] = s;
+        let (w, h) = (img.width(), img.height());
+        let mut gx = vec![0i16; w * h];
+        let mut gy = vec![0i16; w * h];
+        if w > 0 && h > 0 {
+            let pw = w + 2;
+            let mut padded = vec![0i16; pw * h];
+            let mut buf = Vec::with_capacity(pw);
+            for (src, dst) in img.data().chunks_exact(w).zip(padded.chunks_exact_mut(pw)) {
+                pad_row(src, 1, &mut buf);
+                for (d, &p) in dst.iter_mut().zip(&buf) {
+                    *d = i16::from(p);
+                }
+            }
+            let mut vs = vec![0i16; pw];
+            let mut vd = vec![0i16; pw];
+            let rows = gx.chunks_exact_mut(w).zip(gy.chunks_exact_mut(w));
+            for (y, (ox, oy)) in rows.enumerate() {
+                let up = reflect101(y as isize - 1, h);
+                let dn = reflect101(y as isize + 1, h);
+                let (ru, rm, rd) = (
+                    &padded[up * pw..(up + 1) * pw],
+                    &padded[y * pw..(y + 1) * pw],
+                    &padded[dn * pw..(dn + 1) * pw],
+                );
+                for (((s, d), (&u, &m)), &b) in vs
+                    .iter_mut()
+                    .zip(vd.iter_mut())
+                    .zip(ru.iter().zip(rm))
+                    .zip(rd)
+                {
+                    *s = s0 * (u + b) + s1 * m;
+                    *d = b - u;
+                }
+                for (o, win) in ox.iter_mut().zip(vs.windows(3)) {
+                    *o = win[2] - win[0];
+                }
+                for (o, win) in oy.iter_mut().zip(vd.windows(3)) {
+                    *o = s0 * (win[0] + win[2]) + s1 * win[1];
+                }
             }
         }
-        let mut vs = vec![0i16; pw];
-        let mut vd = vec![0i16; pw];
-        let rows = gx.chunks_exact_mut(w).zip(gy.chunks_exact_mut(w));
-        for (y, (ox, oy)) in rows.enumerate() {
-            let up = reflect101(y as isize - 1, h);
-            let dn = reflect101(y as isize + 1, h);
-            let (ru, rm, rd) = (
-                &padded[up * pw..(up + 1) * pw],
-                &padded[y * pw..(y + 1) * pw],
-                &padded[dn * pw..(dn + 1) * pw],
-            );
-            for (((s, d), (&u, &m)), &b) in vs
-                .iter_mut()
-                .zip(vd.iter_mut())
-                .zip(ru.iter().zip(rm))
-                .zip(rd)
-            {
-                *s = s0 * (u + b) + s1 * m;
-                *d = b - u;
-            }
-            for (o, win) in ox.iter_mut().zip(vs.windows(3)) {
-                *o = win[2] - win[0];
-            }
-            for (o, win) in oy.iter_mut().zip(vd.windows(3)) {
-                *o = s0 * (win[0] + win[2]) + s1 * win[1];
-            }
+        Gradients {
+            gx: image_like(img, gx),
+            gy: image_like(img, gy),
         }
-    }
-    Gradients {
-        gx: image_like(img, gx),
-        gy: image_like(img, gy),
     }
 }
 

@@ -338,44 +338,40 @@ impl Window {
 dispatch_avx2! {
     /// `Σ a·b` over equal-length slices, in [`BLOCK`]-long `i32` sums (plain multiply-add of
     /// sign-extended `i16`, which the compiler turns into `pmaddwd`).
-    fn dot => dot_portable(a: &[i16], b: &[i16]) -> i64
-}
-
-#[inline(always)]
-fn dot_portable(a: &[i16], b: &[i16]) -> i64 {
-    a.chunks(BLOCK)
-        .zip(b.chunks(BLOCK))
-        .map(|(a, b)| {
-            let s: i32 = a
-                .iter()
-                .zip(b)
-                .map(|(&a, &b)| i32::from(a) * i32::from(b))
-                .sum();
-            i64::from(s)
-        })
-        .sum()
+    fn dot(a: &[i16], b: &[i16]) -> i64;
+    portable dot_portable {
+        a.chunks(BLOCK)
+            .zip(b.chunks(BLOCK))
+            .map(|(a, b)| {
+                let s: i32 = a
+                    .iter()
+                    .zip(b)
+                    .map(|(&a, &b)| i32::from(a) * i32::from(b))
+                    .sum();
+                i64::from(s)
+            })
+            .sum()
+    }
 }
 
 dispatch_avx2! {
     /// `Σ (i − j)·g` over equal-length slices, as [`dot`].
-    fn diff_dot => diff_dot_portable(i: &[i16], j: &[i16], g: &[i16]) -> i64
-}
-
-#[inline(always)]
-fn diff_dot_portable(i: &[i16], j: &[i16], g: &[i16]) -> i64 {
-    i.chunks(BLOCK)
-        .zip(j.chunks(BLOCK))
-        .zip(g.chunks(BLOCK))
-        .map(|((i, j), g)| {
-            let s: i32 = i
-                .iter()
-                .zip(j)
-                .zip(g)
-                .map(|((&i, &j), &g)| i32::from(i.wrapping_sub(j)) * i32::from(g))
-                .sum();
-            i64::from(s)
-        })
-        .sum()
+    fn diff_dot(i: &[i16], j: &[i16], g: &[i16]) -> i64;
+    portable diff_dot_portable {
+        i.chunks(BLOCK)
+            .zip(j.chunks(BLOCK))
+            .zip(g.chunks(BLOCK))
+            .map(|((i, j), g)| {
+                let s: i32 = i
+                    .iter()
+                    .zip(j)
+                    .zip(g)
+                    .map(|((&i, &j), &g)| i32::from(i.wrapping_sub(j)) * i32::from(g))
+                    .sum();
+                i64::from(s)
+            })
+            .sum()
+    }
 }
 
 /// Splits a window origin into its integer pixel and the 14-bit bilinear weights of its
@@ -462,55 +458,46 @@ impl<T: Copy + Into<i32>> Pixel for T {}
 dispatch_avx2! {
     /// The interpolation loop of [`sample`]: `src` holds the patch's rows `pitch` apart, each
     /// at least `stride + 1` long.
-    fn interpolate<T: Pixel> => interpolate_portable(
+    fn interpolate<T: Pixel>(
         src: &[T],
         pitch: usize,
         w: [i16; 4],
         shift: u32,
         out: &mut [i16],
         stride: usize,
-    ) -> ()
-}
-
-#[inline(always)]
-fn interpolate_portable<T: Pixel>(
-    src: &[T],
-    pitch: usize,
-    w: [i16; 4],
-    shift: u32,
-    out: &mut [i16],
-    stride: usize,
-) {
-    // The mask (a no-op: weights are in 0..=2¹⁴) tells the compiler the products are of 15-bit
-    // non-negative numbers, which it then multiplies in 16-bit lanes (SSE2 pmaddwd/pmullw).
-    let [w00, w01, w10, w11] = w.map(|v| [i32::from(v) & 0x7fff; LANES]);
-    let half = 1i32 << (shift - 1);
-    let rows = src
-        .chunks(pitch)
-        .map(|r| r.get(..=stride).unwrap_or_default());
-    for ((top, bottom), o) in rows
-        .clone()
-        .zip(rows.skip(1))
-        .zip(out.chunks_exact_mut(stride))
-    {
-        if top.len() != stride + 1 || bottom.len() != stride + 1 {
-            break;
-        }
-        let (t0, t1) = (
-            top[..stride].chunks_exact(LANES),
-            top[1..].chunks_exact(LANES),
-        );
-        let (b0, b1) = (
-            bottom[..stride].chunks_exact(LANES),
-            bottom[1..].chunks_exact(LANES),
-        );
-        for ((((o, a), b), c), d) in o.chunks_exact_mut(LANES).zip(t0).zip(t1).zip(b0).zip(b1) {
-            for k in 0..LANES {
-                let v = a[k].into() * w00[k]
-                    + b[k].into() * w01[k]
-                    + c[k].into() * w10[k]
-                    + d[k].into() * w11[k];
-                o[k] = ((v + half) >> shift) as i16;
+    );
+    portable interpolate_portable {
+        // The mask (a no-op: weights are in 0..=2¹⁴) tells the compiler the products are of 15-bit
+        // non-negative numbers, which it then multiplies in 16-bit lanes (SSE2 pmaddwd/pmullw).
+        let [w00, w01, w10, w11] = w.map(|v| [i32::from(v) & 0x7fff; LANES]);
+        let half = 1i32 << (shift - 1);
+        let rows = src
+            .chunks(pitch)
+            .map(|r| r.get(..=stride).unwrap_or_default());
+        for ((top, bottom), o) in rows
+            .clone()
+            .zip(rows.skip(1))
+            .zip(out.chunks_exact_mut(stride))
+        {
+            if top.len() != stride + 1 || bottom.len() != stride + 1 {
+                break;
+            }
+            let (t0, t1) = (
+                top[..stride].chunks_exact(LANES),
+                top[1..].chunks_exact(LANES),
+            );
+            let (b0, b1) = (
+                bottom[..stride].chunks_exact(LANES),
+                bottom[1..].chunks_exact(LANES),
+            );
+            for ((((o, a), b), c), d) in o.chunks_exact_mut(LANES).zip(t0).zip(t1).zip(b0).zip(b1) {
+                for k in 0..LANES {
+                    let v = a[k].into() * w00[k]
+                        + b[k].into() * w01[k]
+                        + c[k].into() * w10[k]
+                        + d[k].into() * w11[k];
+                    o[k] = ((v + half) >> shift) as i16;
+                }
             }
         }
     }

@@ -323,46 +323,38 @@ dispatch_avx2! {
     /// Rotated BRIEF: bit i compares the blurred image at the two rotated, rounded pattern
     /// points. The rotated offsets are computed first in a loop of their own (vectorised), then
     /// the image is sampled at them.
-    fn describe => describe_portable(
+    fn describe(
         blurred: &GrayImage,
         pattern: &PatternPoints,
         x: usize,
         y: usize,
         angle: f32,
-    ) -> Descriptor
-}
-
-#[inline(always)]
-fn describe_portable(
-    blurred: &GrayImage,
-    pattern: &PatternPoints,
-    x: usize,
-    y: usize,
-    angle: f32,
-) -> Descriptor {
-    let d = blurred.data();
-    let centre = y * blurred.width() + x;
-    // the row pitch as i32 (no image here is 2³¹ px wide; 0 would only keep it panic-free)
-    let w = i32::try_from(blurred.width()).unwrap_or(0);
-    let (s, c) = angle.sin_cos();
-    // rotated, rounded offsets in i32 lanes, vectorised (|offsets| < 19 px)
-    let mut offsets = [0i32; 512];
-    for ((o, &px), &py) in offsets.iter_mut().zip(&pattern.x).zip(&pattern.y) {
-        *o = round_to_i32(px * s + py * c) * w + round_to_i32(px * c - py * s);
-    }
-    let at = |o: i32| {
-        d.get(centre.wrapping_add_signed(o as isize))
-            .copied()
-            .unwrap_or(0)
-    };
-    let mut desc = [0u64; 4];
-    for (word, tests) in desc.iter_mut().zip(offsets.chunks_exact(128)) {
-        // one bit per test without a branch (the comparisons are coin flips to a predictor)
-        for (bit, pair) in tests.chunks_exact(2).enumerate() {
-            *word |= u64::from(at(pair[0]) < at(pair[1])) << bit;
+    ) -> Descriptor;
+    portable describe_portable {
+        let d = blurred.data();
+        let centre = y * blurred.width() + x;
+        // the row pitch as i32 (no image here is 2³¹ px wide; 0 would only keep it panic-free)
+        let w = i32::try_from(blurred.width()).unwrap_or(0);
+        let (s, c) = angle.sin_cos();
+        // rotated, rounded offsets in i32 lanes, vectorised (|offsets| < 19 px)
+        let mut offsets = [0i32; 512];
+        for ((o, &px), &py) in offsets.iter_mut().zip(&pattern.x).zip(&pattern.y) {
+            *o = round_to_i32(px * s + py * c) * w + round_to_i32(px * c - py * s);
         }
+        let at = |o: i32| {
+            d.get(centre.wrapping_add_signed(o as isize))
+                .copied()
+                .unwrap_or(0)
+        };
+        let mut desc = [0u64; 4];
+        for (word, tests) in desc.iter_mut().zip(offsets.chunks_exact(128)) {
+            // one bit per test without a branch (the comparisons are coin flips to a predictor)
+            for (bit, pair) in tests.chunks_exact(2).enumerate() {
+                *word |= u64::from(at(pair[0]) < at(pair[1])) << bit;
+            }
+        }
+        desc
     }
-    desc
 }
 
 #[cfg(test)]

@@ -10,44 +10,45 @@ use crate::simd::dispatch_avx2;
 
 dispatch_avx2! {
     /// Halves an image as `cv::pyrDown`: output `⌈w/2⌉ × ⌈h/2⌉`, reflect-101 border, rounded.
-    pub fn pyr_down => pyr_down_portable(img: &GrayImage) -> GrayImage
-}
-
-#[inline(always)]
-fn pyr_down_portable(img: &GrayImage) -> GrayImage {
-    let (w, h) = (img.width(), img.height());
-    let (dw, dh) = (w.div_ceil(2), h.div_ceil(2));
-    if w == 0 || h == 0 {
-        return Image::filled(dw, dh, 0);
-    }
-    // Horizontal pass with decimation: one u16 row (≤ 16·255) per source row.
-    let mut tmp = vec![0u16; dw * h];
-    let mut padded = Vec::with_capacity(w + 5);
-    for (src, dst) in img.data().chunks_exact(w).zip(tmp.chunks_exact_mut(dw)) {
-        pad_row(src, 2, &mut padded);
-        for (d, win) in dst.iter_mut().zip(padded.windows(5).step_by(2)) {
-            let (a, b, c, e, f) = (win[0], win[1], win[2], win[3], win[4]);
-            *d = u16::from(a) + u16::from(f) + 4 * (u16::from(b) + u16::from(e)) + 6 * u16::from(c);
+    pub fn pyr_down(img: &GrayImage) -> GrayImage;
+    portable pyr_down_portable {
+        let (w, h) = (img.width(), img.height());
+        let (dw, dh) = (w.div_ceil(2), h.div_ceil(2));
+        if w == 0 || h == 0 {
+            return Image::filled(dw, dh, 0);
         }
-    }
-    let mut out = vec![0u8; dw * dh];
-    for (y, dst) in out.chunks_exact_mut(dw).enumerate() {
-        let row = |k: isize| {
-            let sy = reflect101(2 * y as isize + k, h);
-            &tmp[sy * dw..(sy + 1) * dw]
-        };
-        let (r0, r1, r2, r3, r4) = (row(-2), row(-1), row(0), row(1), row(2));
-        for (i, d) in dst.iter_mut().enumerate() {
-            let s = u32::from(r0[i])
-                + u32::from(r4[i])
-                + 4 * (u32::from(r1[i]) + u32::from(r3[i]))
-                + 6 * u32::from(r2[i]);
-            *d = ((s + 128) >> 8) as u8;
+        // Horizontal pass with decimation: one u16 row (≤ 16·255) per source row.
+        let mut tmp = vec![0u16; dw * h];
+        let mut padded = Vec::with_capacity(w + 5);
+        for (src, dst) in img.data().chunks_exact(w).zip(tmp.chunks_exact_mut(dw)) {
+            pad_row(src, 2, &mut padded);
+            for (d, win) in dst.iter_mut().zip(padded.windows(5).step_by(2)) {
+                let (a, b, c, e, f) = (win[0], win[1], win[2], win[3], win[4]);
+                *d = u16::from(a)
+                    + u16::from(f)
+                    + 4 * (u16::from(b) + u16::from(e))
+                    + 6 * u16::from(c);
+            }
         }
-    }
-    match Image::from_vec(dw, dh, out) {
-        Some(img) => img,
-        None => unreachable!("pyr_down buffer has dw*dh pixels"),
+        let mut out = vec![0u8; dw * dh];
+        for (y, dst) in out.chunks_exact_mut(dw).enumerate() {
+            let row = |k: isize| {
+                let sy = reflect101(2 * y as isize + k, h);
+                &tmp[sy * dw..(sy + 1) * dw]
+            };
+            let (r0, r1, r2, r3, r4) = (row(-2), row(-1), row(0), row(1), row(2));
+            for (i, d) in dst.iter_mut().enumerate() {
+                let s = u32::from(r0[i])
+                    + u32::from(r4[i])
+                    + 4 * (u32::from(r1[i]) + u32::from(r3[i]))
+                    + 6 * u32::from(r2[i]);
+                *d = ((s + 128) >> 8) as u8;
+            }
+        }
+        match Image::from_vec(dw, dh, out) {
+            Some(img) => img,
+            None => unreachable!("pyr_down buffer has dw*dh pixels"),
+        }
     }
 }
 
@@ -109,50 +110,48 @@ dispatch_avx2! {
     /// Each output row first blends its two source rows over the full width (a vectorised
     /// multiply–add), then blends pairs of columns; the products are exact integers, so the
     /// order of the two passes does not change the result.
-    pub fn resize_bilinear => resize_bilinear_portable(img: &GrayImage, dw: usize, dh: usize) -> GrayImage
-}
-
-#[inline(always)]
-fn resize_bilinear_portable(img: &GrayImage, dw: usize, dh: usize) -> GrayImage {
-    let (w, h) = (img.width(), img.height());
-    if w == 0 || h == 0 || dw == 0 || dh == 0 {
-        return Image::filled(dw, dh, 0);
-    }
-    let xt = resize_taps(dw, w);
-    let yt = resize_taps(dh, h);
-    let data = img.data();
-    // one spare column so that the right tap of the last column exists (its weight is 0)
-    let mut blend = vec![0u32; w + 1];
-    let mut pairs = vec![[0u32; 2]; dw];
-    let mut out = vec![0u8; dw * dh];
-    for (dst, &(y0, fy)) in out.chunks_exact_mut(dw).zip(&yt) {
-        let y1 = (y0 + 1).min(h - 1);
-        let (r0, r1) = (&data[y0 * w..(y0 + 1) * w], &data[y1 * w..(y1 + 1) * w]);
-        // 8-bit samples times 12-bit weights: 16-bit operands, exact 32-bit sums
-        let (w0, w1) = ((RESIZE_ONE - fy) as i16, fy as i16);
-        for ((b, &p0), &p1) in blend.iter_mut().zip(r0).zip(r1) {
-            let v = i32::from(p0 as i16) * i32::from(w0) + i32::from(p1 as i16) * i32::from(w1);
-            *b = v as u32;
+    pub fn resize_bilinear(img: &GrayImage, dw: usize, dh: usize) -> GrayImage;
+    portable resize_bilinear_portable {
+        let (w, h) = (img.width(), img.height());
+        if w == 0 || h == 0 || dw == 0 || dh == 0 {
+            return Image::filled(dw, dh, 0);
         }
-        blend[w] = blend[w - 1];
-        // the two taps of every output column (scalar loads), then the blend in lanes
-        for (p, &(x0, _)) in pairs.iter_mut().zip(&xt) {
-            if let Some(&[a, b]) = blend
-                .get(x0..x0 + 2)
-                .and_then(|s| <&[u32; 2]>::try_from(s).ok())
-            {
-                *p = [a, b];
+        let xt = resize_taps(dw, w);
+        let yt = resize_taps(dh, h);
+        let data = img.data();
+        // one spare column so that the right tap of the last column exists (its weight is 0)
+        let mut blend = vec![0u32; w + 1];
+        let mut pairs = vec![[0u32; 2]; dw];
+        let mut out = vec![0u8; dw * dh];
+        for (dst, &(y0, fy)) in out.chunks_exact_mut(dw).zip(&yt) {
+            let y1 = (y0 + 1).min(h - 1);
+            let (r0, r1) = (&data[y0 * w..(y0 + 1) * w], &data[y1 * w..(y1 + 1) * w]);
+            // 8-bit samples times 12-bit weights: 16-bit operands, exact 32-bit sums
+            let (w0, w1) = ((RESIZE_ONE - fy) as i16, fy as i16);
+            for ((b, &p0), &p1) in blend.iter_mut().zip(r0).zip(r1) {
+                let v = i32::from(p0 as i16) * i32::from(w0) + i32::from(p1 as i16) * i32::from(w1);
+                *b = v as u32;
+            }
+            blend[w] = blend[w - 1];
+            // the two taps of every output column (scalar loads), then the blend in lanes
+            for (p, &(x0, _)) in pairs.iter_mut().zip(&xt) {
+                if let Some(&[a, b]) = blend
+                    .get(x0..x0 + 2)
+                    .and_then(|s| <&[u32; 2]>::try_from(s).ok())
+                {
+                    *p = [a, b];
+                }
+            }
+            for ((d, &[a, b]), &(_, fx)) in dst.iter_mut().zip(&pairs).zip(&xt) {
+                // a·(1 − f) + b·f as a + (b − a)·f: one product, below 2³¹ (a, b < 2²⁰, f ≤ 2¹¹)
+                let (a, b, f) = (a as i32, b as i32, fx as i32);
+                *d = (((a << 11) + (b - a) * f + (1 << 21)) >> 22) as u8;
             }
         }
-        for ((d, &[a, b]), &(_, fx)) in dst.iter_mut().zip(&pairs).zip(&xt) {
-            // a·(1 − f) + b·f as a + (b − a)·f: one product, below 2³¹ (a, b < 2²⁰, f ≤ 2¹¹)
-            let (a, b, f) = (a as i32, b as i32, fx as i32);
-            *d = (((a << 11) + (b - a) * f + (1 << 21)) >> 22) as u8;
+        match Image::from_vec(dw, dh, out) {
+            Some(img) => img,
+            None => unreachable!("resize buffer has dw*dh pixels"),
         }
-    }
-    match Image::from_vec(dw, dh, out) {
-        Some(img) => img,
-        None => unreachable!("resize buffer has dw*dh pixels"),
     }
 }
 

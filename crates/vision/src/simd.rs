@@ -10,30 +10,50 @@
 //! copies compute in integers (or the same IEEE `f32` operations, no fused multiply–add), so
 //! their results are identical; each kernel's tests check the two against each other.
 
-/// Defines `$vis fn $name<T: Bound>(args) -> ret` (generics optional) that runs `$body(args)` compiled for AVX2 when the CPU
-/// has it, and the portable `$body` otherwise. `$body` should be `#[inline(always)]` (and so
-/// should its helpers) so that all of its loops are compiled inside the AVX2 copy.
+/// Defines a kernel once and compiles it twice: `$vis fn $name<T: Bound>(args) -> ret`
+/// (generics and return type optional) runs the body compiled for AVX2 when the CPU has it, and
+/// the portable copy, the `#[inline(always)]` fn `$portable` with the same signature, otherwise.
+/// The body's own helpers should be `#[inline(always)]` too, so that all of its loops are
+/// compiled inside the AVX2 copy. Arguments are plain names (destructure them in the body), as
+/// the dispatcher passes them on; tests compare `$portable` with `$name` and with references.
+///
+/// ```text
+/// dispatch_avx2! {
+///     /// What the kernel computes.
+///     pub fn kernel(img: &GrayImage, k: &[u16]) -> GrayImage;
+///     /// How the portable body computes it.
+///     portable kernel_portable {
+///         separable(img, k)
+///     }
+/// }
+/// ```
 macro_rules! dispatch_avx2 {
     (
         $(#[$attr:meta])*
         $vis:vis fn $name:ident $(<$($gen:ident : $bound:path),+>)?
-            => $body:ident ( $($arg:ident : $ty:ty),* $(,)? ) -> $ret:ty
+            ( $($arg:ident : $ty:ty),* $(,)? ) $(-> $ret:ty)?;
+        $(#[$body_attr:meta])*
+        portable $portable:ident $body:block
     ) => {
         $(#[$attr])*
-        $vis fn $name $(<$($gen: $bound),+>)? ($($arg: $ty),*) -> $ret {
+        $vis fn $name $(<$($gen: $bound),+>)? ($($arg: $ty),*) $(-> $ret)? {
             #[cfg(target_arch = "x86_64")]
             if std::arch::is_x86_feature_detected!("avx2") {
                 /// The portable body compiled with AVX2 enabled.
                 #[target_feature(enable = "avx2")]
-                fn with_avx2 $(<$($gen: $bound),+>)? ($($arg: $ty),*) -> $ret {
-                    $body($($arg),*)
+                fn with_avx2 $(<$($gen: $bound),+>)? ($($arg: $ty),*) $(-> $ret)? {
+                    $portable($($arg),*)
                 }
                 // SAFETY: the CPU supports AVX2, the only feature `with_avx2` enables.
                 #[allow(unsafe_code)]
                 return unsafe { with_avx2($($arg),*) };
             }
-            $body($($arg),*)
+            $portable($($arg),*)
         }
+
+        $(#[$body_attr])*
+        #[inline(always)]
+        fn $portable $(<$($gen: $bound),+>)? ($($arg: $ty),*) $(-> $ret)? $body
     };
 }
 

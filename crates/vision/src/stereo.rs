@@ -215,81 +215,71 @@ impl CoarsePair {
 
 dispatch_avx2! {
     /// [`CoarsePair::zncc_run`], compiled for AVX2 as well.
-    fn zncc_run_lanes => zncc_run_lanes_portable(
+    fn zncc_run_lanes(
         pair: &CoarsePair,
         patch: &Patch,
         at: (usize, usize),
         r: usize,
         count: usize,
         scratch: (&mut Vec<f32>, &mut Vec<f32>),
-    ) -> ()
-}
-
-#[inline(always)]
-fn zncc_run_lanes_portable(
-    pair: &CoarsePair,
-    patch: &Patch,
-    (x_first, y): (usize, usize),
-    r: usize,
-    count: usize,
-    scratch: (&mut Vec<f32>, &mut Vec<f32>),
-) {
-    let (dots, out) = scratch;
-    let side = 2 * r + 1;
-    let padded = side.next_multiple_of(LANES);
-    let x0 = x_first - r;
-    let w = pair.right.width;
-    dots.clear();
-    dots.resize(count, 0.0);
-    for (row, prow) in (y - r..=y + r).zip(patch.values.chunks_exact(padded)) {
-        let start = row * w + x0;
-        let Some(rrow) = pair.right_f32.get(start..start + count + side - 1) else {
-            out.extend(std::iter::repeat(-1.0).take(count));
-            return;
-        };
-        for (c, &p) in prow.iter().take(side).enumerate() {
-            let p = f32::from(p);
-            for (d, &v) in dots.iter_mut().zip(&rrow[c..c + count]) {
-                *d += p * v;
+    );
+    portable zncc_run_lanes_portable {
+        let (x_first, y) = at;
+        let (dots, out) = scratch;
+        let side = 2 * r + 1;
+        let padded = side.next_multiple_of(LANES);
+        let x0 = x_first - r;
+        let w = pair.right.width;
+        dots.clear();
+        dots.resize(count, 0.0);
+        for (row, prow) in (y - r..=y + r).zip(patch.values.chunks_exact(padded)) {
+            let start = row * w + x0;
+            let Some(rrow) = pair.right_f32.get(start..start + count + side - 1) else {
+                out.extend(std::iter::repeat(-1.0).take(count));
+                return;
+            };
+            for (c, &p) in prow.iter().take(side).enumerate() {
+                let p = f32::from(p);
+                for (d, &v) in dots.iter_mut().zip(&rrow[c..c + count]) {
+                    *d += p * v;
+                }
             }
         }
+        out.extend(
+            dots.iter()
+                .enumerate()
+                .map(|(k, &dot)| pair.right.normalise(patch, dot as i32, x0 + k, y - r, side)),
+        );
     }
-    out.extend(
-        dots.iter()
-            .enumerate()
-            .map(|(k, &dot)| pair.right.normalise(patch, dot as i32, x0 + k, y - r, side)),
-    );
 }
 
 dispatch_avx2! {
     /// [`RightImage::zncc`], compiled for AVX2 as well.
-    fn zncc_window => zncc_window_portable(img: &RightImage, patch: &Patch, xr: usize, y: usize, r: usize) -> f32
-}
-
-#[inline(always)]
-fn zncc_window_portable(img: &RightImage, patch: &Patch, xr: usize, y: usize, r: usize) -> f32 {
-    let side = 2 * r + 1;
-    let (x0, y0, y1) = (xr - r, y - r, y + r + 1);
-    let padded = side.next_multiple_of(LANES);
-    // integer dot product over zero-padded rows (exact), in eight i32 lanes reduced once per
-    // window
-    let mut acc = [0i32; LANES];
-    for (row, prow) in (y0..y1).zip(patch.values.chunks_exact(padded)) {
-        let start = row * img.width + x0;
-        let Some(rrow) = img.values.get(start..start + padded) else {
-            return -1.0;
-        };
-        for (a, b) in prow.chunks_exact(LANES).zip(rrow.chunks_exact(LANES)) {
-            let (Ok(a), Ok(b)) = (<&[i16; LANES]>::try_from(a), <&[i16; LANES]>::try_from(b))
-            else {
-                continue;
+    fn zncc_window(img: &RightImage, patch: &Patch, xr: usize, y: usize, r: usize) -> f32;
+    portable zncc_window_portable {
+        let side = 2 * r + 1;
+        let (x0, y0, y1) = (xr - r, y - r, y + r + 1);
+        let padded = side.next_multiple_of(LANES);
+        // integer dot product over zero-padded rows (exact), in eight i32 lanes reduced once per
+        // window
+        let mut acc = [0i32; LANES];
+        for (row, prow) in (y0..y1).zip(patch.values.chunks_exact(padded)) {
+            let start = row * img.width + x0;
+            let Some(rrow) = img.values.get(start..start + padded) else {
+                return -1.0;
             };
-            for l in 0..LANES {
-                acc[l] += i32::from(a[l]) * i32::from(b[l]);
+            for (a, b) in prow.chunks_exact(LANES).zip(rrow.chunks_exact(LANES)) {
+                let (Ok(a), Ok(b)) = (<&[i16; LANES]>::try_from(a), <&[i16; LANES]>::try_from(b))
+                else {
+                    continue;
+                };
+                for l in 0..LANES {
+                    acc[l] += i32::from(a[l]) * i32::from(b[l]);
+                }
             }
         }
+        img.normalise(patch, acc.iter().sum(), x0, y0, side)
     }
-    img.normalise(patch, acc.iter().sum(), x0, y0, side)
 }
 
 /// A rectified pair prepared for matching; keep it to match more points of the same pair (the
