@@ -118,8 +118,19 @@ impl Passable<'_> {
         })
     }
 
-    pub(crate) fn valid(&self, cell: (usize, usize)) -> bool {
-        self.mask.len() == self.width * self.height && cell.0 < self.width && cell.1 < self.height
+    /// Cell indices of a search's `start` and `goal`; every search begins here, and answers
+    /// `Err(0)` (nothing expanded) when the mask does not match the size or a cell is off the
+    /// grid.
+    pub(crate) fn endpoints(
+        &self,
+        start: (usize, usize),
+        goal: (usize, usize),
+    ) -> Result<(usize, usize), usize> {
+        let on_grid = |c: (usize, usize)| c.0 < self.width && c.1 < self.height;
+        if !(self.mask.len() == self.width * self.height && on_grid(start) && on_grid(goal)) {
+            return Err(0);
+        }
+        Ok((start.1 * self.width + start.0, goal.1 * self.width + goal.0))
     }
 }
 
@@ -147,10 +158,7 @@ pub fn bfs(
     start: (usize, usize),
     goal: (usize, usize),
 ) -> Result<SearchResult, usize> {
-    if !(grid.valid(start) && grid.valid(goal)) {
-        return Err(0);
-    }
-    let (s, g) = (start.1 * grid.width + start.0, goal.1 * grid.width + goal.0);
+    let (s, g) = grid.endpoints(start, goal)?;
     let mut parent = vec![NONE; grid.mask.len()];
     parent[s] = s as u32;
     let mut queue = VecDeque::from([s]);
@@ -190,11 +198,8 @@ pub fn best_first(
     model: CostModel,
     use_heuristic: bool,
 ) -> Result<SearchResult, usize> {
-    if !(grid.valid(start) && grid.valid(goal)) {
-        return Err(0);
-    }
+    let (s, g) = grid.endpoints(start, goal)?;
     let w = grid.width;
-    let (s, g) = (start.1 * w + start.0, goal.1 * w + goal.0);
     let h = |x: usize, y: usize| {
         if use_heuristic {
             model.heuristic(x.abs_diff(goal.0), y.abs_diff(goal.1))
@@ -348,5 +353,28 @@ mod tests {
         };
         assert!(bfs(grid, (0, 0), (4, 4)).is_ok());
         assert!(bfs(grid, (0, 0), (9, 9)).is_err(), "off-grid goal");
+    }
+
+    #[test]
+    fn every_search_rejects_off_grid_cells_and_a_wrong_mask_expanding_nothing() {
+        let mask = vec![true; 20];
+        let grid = |height| Passable {
+            mask: &mask,
+            width: 5,
+            height,
+        };
+        let cases = [
+            (grid(4), (5, 0), (0, 0)),
+            (grid(4), (0, 0), (0, 4)),
+            (grid(3), (0, 0), (1, 1)),
+        ];
+        for (g, start, goal) in cases {
+            assert_eq!(bfs(g, start, goal).err(), Some(0));
+            let a = best_first(g, start, goal, CostModel::Octile, true);
+            assert_eq!(a.err(), Some(0));
+            let j = crate::jps::jump_point_search(g, start, goal);
+            assert_eq!(j.err(), Some(0));
+        }
+        assert!(crate::jps::jump_point_search(grid(4), (0, 0), (4, 3)).is_ok());
     }
 }

@@ -175,9 +175,7 @@ pub fn jump_point_search(
     start: (usize, usize),
     goal: (usize, usize),
 ) -> Result<SearchResult, usize> {
-    if !(grid.valid(start) && grid.valid(goal)) {
-        return Err(0);
-    }
+    let (s, g) = grid.endpoints(start, goal)?;
     let w = grid.width;
     let cell = |c: (usize, usize)| (c.0 as isize, c.1 as isize);
     let index = |c: (isize, isize)| c.1 as usize * w + c.0 as usize;
@@ -185,7 +183,6 @@ pub fn jump_point_search(
         grid,
         goal: cell(goal),
     };
-    let (s, g) = (index(cell(start)), index(cell(goal)));
     // Only jump points get a record, a few thousand even on large maps, so a hash map keeps
     // the search's memory (and its set-up time) independent of the grid's size.
     let mut nodes: HashMap<usize, Node> = HashMap::new();
