@@ -188,36 +188,27 @@ impl World {
 
     /// Checks sizes, heights and that every path point and the goal lie in the room.
     fn validate(&self) -> Result<(), String> {
-        let positive = |v: f64| v.is_finite() && v > 0.0;
         if !(positive(self.size_m[0]) && positive(self.size_m[1]) && positive(self.height_m)) {
             return Err("size_m and height_m must be positive".into());
         }
-        check_range("floor", &[0.0, self.height_m])?;
-        for (i, w) in self.walls.iter().enumerate() {
-            check_range(&format!("walls[{i}]"), &w.z_m)?;
+        check_each("walls", &self.walls, |w| {
+            check_range(&w.z_m)?;
             let len = ((w.to[0] - w.from[0]).powi(2) + (w.to[1] - w.from[1]).powi(2)).sqrt();
-            if !(positive(len) && positive(w.thickness_m)) {
-                return Err(format!("walls[{i}]: zero length or thickness"));
-            }
-        }
-        for (i, b) in self.boxes.iter().enumerate() {
-            check_range(&format!("boxes[{i}]"), &b.z_m)?;
-            if !(positive(b.size_m[0]) && positive(b.size_m[1]) && b.yaw_rad.is_finite()) {
-                return Err(format!("boxes[{i}]: size_m must be positive"));
-            }
-        }
-        for (i, c) in self.cylinders.iter().enumerate() {
-            check_range(&format!("cylinders[{i}]"), &c.z_m)?;
-            if !positive(c.radius_m) {
-                return Err(format!("cylinders[{i}]: radius_m must be positive"));
-            }
-        }
-        for (i, r) in self.ramps.iter().enumerate() {
-            check_range(&format!("ramps[{i}]"), &r.z_m)?;
-            if !(positive(r.size_m[0]) && positive(r.size_m[1]) && r.yaw_rad.is_finite()) {
-                return Err(format!("ramps[{i}]: size_m must be positive"));
-            }
-        }
+            require(
+                positive(len) && positive(w.thickness_m),
+                "zero length or thickness",
+            )
+        })?;
+        check_each("boxes", &self.boxes, |b| {
+            check_footprint(&b.z_m, b.size_m, b.yaw_rad)
+        })?;
+        check_each("cylinders", &self.cylinders, |c| {
+            check_range(&c.z_m)?;
+            require(positive(c.radius_m), "radius_m must be positive")
+        })?;
+        check_each("ramps", &self.ramps, |r| {
+            check_footprint(&r.z_m, r.size_m, r.yaw_rad)
+        })?;
         self.validate_paths()
     }
 
@@ -242,14 +233,45 @@ impl World {
     }
 }
 
+/// Finite and above zero.
+fn positive(v: f64) -> bool {
+    v.is_finite() && v > 0.0
+}
+
+/// Runs `check` on every item of a list of obstacles, naming a failing one `list[i]`.
+fn check_each<T>(
+    list: &str,
+    items: &[T],
+    check: impl Fn(&T) -> Result<(), String>,
+) -> Result<(), String> {
+    for (i, item) in items.iter().enumerate() {
+        check(item).map_err(|e| format!("{list}[{i}]: {e}"))?;
+    }
+    Ok(())
+}
+
 /// A height range must be finite and increasing.
-fn check_range(what: &str, z: &[f64; 2]) -> Result<(), String> {
+fn check_range(z: &[f64; 2]) -> Result<(), String> {
     if z[0].is_finite() && z[1].is_finite() && z[0] < z[1] {
         Ok(())
     } else {
-        Err(format!(
-            "{what}: z_m {z:?} must be finite with z_min < z_max"
-        ))
+        Err(format!("z_m {z:?} must be finite with z_min < z_max"))
+    }
+}
+
+/// What boxes and ramps (both rotated rectangles standing on a height range) must satisfy.
+fn check_footprint(z_m: &[f64; 2], size_m: [f64; 2], yaw_rad: f64) -> Result<(), String> {
+    check_range(z_m)?;
+    let ok = positive(size_m[0]) && positive(size_m[1]) && yaw_rad.is_finite();
+    require(ok, "size_m must be positive")
+}
+
+/// `Err(what)` unless `ok`.
+fn require(ok: bool, what: &str) -> Result<(), String> {
+    if ok {
+        Ok(())
+    } else {
+        Err(what.to_string())
     }
 }
 
@@ -290,10 +312,12 @@ mod tests {
         assert!(err.to_string().contains("heigth_m"), "{err}");
         let bad_box =
             format!("{MINIMAL}\n[[boxes]]\ncenter = [1, 1]\nsize_m = [1, 1]\nz_m = [1, 0.5]");
-        assert!(matches!(
-            World::from_toml(&bad_box, "t"),
-            Err(SimError::InvalidWorld { .. })
-        ));
+        let err = World::from_toml(&bad_box, "t").unwrap_err();
+        assert!(matches!(err, SimError::InvalidWorld { .. }));
+        assert!(
+            err.to_string().contains("boxes[0]: z_m [1.0, 0.5]"),
+            "{err}"
+        );
         let outside = MINIMAL.replace("[3.0, 2.0]", "[5.0, 2.0]");
         assert!(World::from_toml(&outside, "t").is_err());
         assert!(World::from_toml("garbage = [", "t").is_err());
