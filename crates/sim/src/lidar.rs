@@ -64,14 +64,21 @@ impl Lidar2dConfig {
             && self.fov_rad <= std::f64::consts::TAU
             && self.max_range_m > self.min_range_m
             && self.min_range_m >= 0.0
-            && self.range_sigma_m >= 0.0
-            && (0.0..=1.0).contains(&self.dropout_probability)
-            && self.resolution_m > 0.0
-            && self.rate_hz > 0.0;
+            && self.noise().is_valid();
         if ok {
             Ok(())
         } else {
             Err(SimError::InvalidConfig(format!("lidar2d: {self:?}")))
+        }
+    }
+
+    /// The beams' noise model, in the form the range finders share.
+    fn noise(&self) -> RangeNoise {
+        RangeNoise {
+            sigma_m: self.range_sigma_m,
+            dropout_probability: self.dropout_probability,
+            step_m: self.resolution_m,
+            rate_hz: self.rate_hz,
         }
     }
 
@@ -133,23 +140,52 @@ impl Lidar2dConfig {
     /// reading of real scanners; only a beam with nothing within range reads the maximum range
     /// ("no return"), which mappers use to clear free space.
     fn measure(&self, truth: Option<f64>, rng: &mut ChaCha8Rng) -> f64 {
-        let noise: f64 = rng.sample(StandardNormal);
-        let dropped = rng.gen_bool(self.dropout_probability);
+        let noisy = self.noise().reading(truth, rng);
         match truth {
             Some(r) if r < self.min_range_m => 0.0,
-            Some(_) if dropped => 0.0,
-            Some(r) => {
-                let noisy = quantise(r + self.range_sigma_m * noise, self.resolution_m);
-                noisy.clamp(self.min_range_m, self.max_range_m)
-            }
+            Some(_) => noisy.map_or(0.0, |r| r.clamp(self.min_range_m, self.max_range_m)),
             None => self.max_range_m,
         }
     }
 }
 
+/// The noise model the lidar's beams and the range finders share: Gaussian noise, dropouts,
+/// rounding, a reading rate.
+pub(crate) struct RangeNoise {
+    /// Standard deviation of the noise \[m\].
+    pub sigma_m: f64,
+    /// Probability that a reading drops out.
+    pub dropout_probability: f64,
+    /// Readings are rounded to multiples of this \[m\].
+    pub step_m: f64,
+    /// Readings per second \[Hz\].
+    pub rate_hz: f64,
+}
+
+impl RangeNoise {
+    /// Whether a sensor can have these values.
+    pub(crate) fn is_valid(&self) -> bool {
+        self.sigma_m >= 0.0
+            && (0.0..=1.0).contains(&self.dropout_probability)
+            && self.step_m > 0.0
+            && self.rate_hz > 0.0
+    }
+
+    /// The reading of the true distance `truth`: plus noise, rounded; `None` when nothing is in
+    /// range or the reading drops out. It draws the same two random numbers (noise, then
+    /// dropout) whatever `truth` is, so one reading's outcome does not shift the random stream
+    /// of the next.
+    pub(crate) fn reading(&self, truth: Option<f64>, rng: &mut ChaCha8Rng) -> Option<f64> {
+        let noise: f64 = rng.sample(StandardNormal);
+        let dropped = rng.gen_bool(self.dropout_probability);
+        let r = truth.filter(|_| !dropped)?;
+        Some(quantise(r + self.sigma_m * noise, self.step_m))
+    }
+}
+
 /// `value` rounded to a multiple of `step`, as `k / (1 / step)` so that millimetre readings
 /// print and parse back to the same number.
-pub(crate) fn quantise(value: f64, step: f64) -> f64 {
+fn quantise(value: f64, step: f64) -> f64 {
     let per_unit = (1.0 / step).round();
     (value * per_unit).round() / per_unit
 }

@@ -5,13 +5,11 @@
 //! true distance plus Gaussian noise, rounded to the resolution; nothing within range (or a
 //! dropout) gives `None`.
 
-use crate::lidar::quantise;
+use crate::lidar::RangeNoise;
 use crate::scene::Scene;
 use crate::SimError;
 use nalgebra::{Point3, Vector3};
-use rand::Rng;
 use rand_chacha::ChaCha8Rng;
-use rand_distr::StandardNormal;
 use serde::{Deserialize, Serialize};
 use slamkit_core::Pose3;
 
@@ -63,15 +61,21 @@ pub struct RangeReading {
 impl RangeFinderConfig {
     /// Fails on values no sensor can have.
     pub fn validate(&self) -> Result<(), SimError> {
-        let ok = self.max_range_m > 0.0
-            && self.sigma_m >= 0.0
-            && (0.0..=1.0).contains(&self.dropout_probability)
-            && self.resolution_m > 0.0
-            && self.rate_hz > 0.0;
+        let ok = self.max_range_m > 0.0 && self.noise().is_valid();
         if ok {
             Ok(())
         } else {
             Err(SimError::InvalidConfig(format!("range finder: {self:?}")))
+        }
+    }
+
+    /// The readings' noise model, in the form the lidar shares.
+    fn noise(&self) -> RangeNoise {
+        RangeNoise {
+            sigma_m: self.sigma_m,
+            dropout_probability: self.dropout_probability,
+            step_m: self.resolution_m,
+            rate_hz: self.rate_hz,
         }
     }
 
@@ -94,11 +98,10 @@ impl RangeFinderConfig {
         timestamp: f64,
         rng: &mut ChaCha8Rng,
     ) -> RangeReading {
+        let noise = self.noise();
         let [up, down] = self.true_ranges(scene, world_from_base).map(|truth| {
-            let noise: f64 = rng.sample(StandardNormal);
-            let dropped = rng.gen_bool(self.dropout_probability);
-            let r = truth.filter(|_| !dropped)?;
-            Some(quantise(r + self.sigma_m * noise, self.resolution_m).clamp(0.0, self.max_range_m))
+            let r = noise.reading(truth, rng)?;
+            Some(r.clamp(0.0, self.max_range_m))
         });
         RangeReading {
             timestamp,
