@@ -266,18 +266,9 @@ pub fn goodness<T: NearestNeighbours + ?Sized>(
     target_from_source: &Pose2,
     max_dist_m: f64,
 ) -> f64 {
-    if source.is_empty() {
-        return 0.0;
-    }
-    let matched = source
-        .iter()
-        .filter(|p| {
-            target
-                .nearest_within(&(target_from_source * *p), max_dist_m)
-                .is_some()
-        })
-        .count();
-    matched as f64 / source.len() as f64
+    fraction_matched(source, target_from_source, |_, q| {
+        target.nearest_within(q, max_dist_m).is_some()
+    })
 }
 
 /// [`goodness`] through the correspondence cache (the same value).
@@ -288,15 +279,24 @@ fn matched_fraction<T: NearestNeighbours + ?Sized>(
     max_dist_m: f64,
     cache: &mut Correspondences,
 ) -> f64 {
+    fraction_matched(source, target_from_source, |i, q| {
+        cache.nearest(i, q, target, max_dist_m).is_some()
+    })
+}
+
+/// Fraction of `source` points for which `has_match(index, point moved by target_from_source)`
+/// holds (0 for no points): [`goodness`] with or without the correspondence cache.
+fn fraction_matched(
+    source: &[Point2<f64>],
+    target_from_source: &Pose2,
+    mut has_match: impl FnMut(usize, &Point2<f64>) -> bool,
+) -> f64 {
     if source.is_empty() {
         return 0.0;
     }
     let matched = (0..)
         .zip(source)
-        .filter(|(i, p)| {
-            let q = target_from_source * *p;
-            cache.nearest(*i, &q, target, max_dist_m).is_some()
-        })
+        .filter(|(i, p)| has_match(*i, &(target_from_source * *p)))
         .count();
     matched as f64 / source.len() as f64
 }
