@@ -61,17 +61,12 @@ fn ate_and_rpe_match_evo_on_fr1_xyz() {
     assert_eq!(rpe["pairs"], 785);
 
     let out = tempfile::tempdir().unwrap();
-    let plot = out.path().join("ate.svg");
-    eval_json(&[
-        "ate",
-        "--gt",
-        gt,
-        "--est",
-        est,
-        "--plot",
-        plot.to_str().unwrap(),
-    ]);
-    assert!(std::fs::metadata(&plot).unwrap().len() > 1000);
+    for metric in ["ate", "rpe"] {
+        let plot = out.path().join(format!("{metric}.svg"));
+        let plot = plot.to_str().unwrap();
+        eval_json(&[metric, "--gt", gt, "--est", est, "--plot", plot]);
+        assert!(std::fs::metadata(plot).unwrap().len() > 1000, "{metric}");
+    }
 }
 
 #[test]

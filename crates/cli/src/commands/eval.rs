@@ -118,16 +118,13 @@ fn run_ate(args: &AteArgs) -> anyhow::Result<()> {
     let (gt, est, pairing) = load_pair(&args.input)?;
     let result = ate(&gt, &est, pairing, args.align).context("computing ATE")?;
     let title = format!("ATE ({} alignment)", args.align);
-    if let Some(path) = &args.input.plot {
-        let series = ErrorSeries {
-            title: &title,
-            label: "ATE (m)",
-            timestamps: &result.timestamps,
-            errors: &result.errors_m,
-        };
-        plot_top_view_and_errors(path, &result, &series)?;
-    }
-    print_stats(&title, &result.stats, args.input.json)
+    let series = ErrorSeries {
+        title: &title,
+        label: "ATE (m)",
+        timestamps: &result.timestamps,
+        errors: &result.errors_m,
+    };
+    plot_and_print(&args.input, Some(&result), &series, &result.stats)
 }
 
 fn run_rpe(args: &RpeArgs) -> anyhow::Result<()> {
@@ -145,34 +142,43 @@ fn run_rpe(args: &RpeArgs) -> anyhow::Result<()> {
         args.unit,
         if args.all_pairs { ", all pairs" } else { "" }
     );
-    if let Some(path) = &args.input.plot {
-        // The top view shows the estimate rigidly aligned; RPE itself needs no alignment.
-        let aligned = ate(&gt, &est, pairing, Alignment::Se3)
-            .or_else(|_| ate(&gt, &est, pairing, Alignment::None))
-            .context("aligning the estimate for the plot")?;
-        let series = ErrorSeries {
-            title: &title,
-            label: "RPE (m)",
-            timestamps: &result.timestamps,
-            errors: &result.errors_m,
-        };
-        plot_top_view_and_errors(path, &aligned, &series)?;
-    }
-    print_stats(&title, &result.stats, args.input.json)
+    // The top view shows the estimate rigidly aligned; RPE itself needs no alignment, so the
+    // alignment is computed only for a plot.
+    let aligned = args
+        .input
+        .plot
+        .as_ref()
+        .map(|_| {
+            ate(&gt, &est, pairing, Alignment::Se3)
+                .or_else(|_| ate(&gt, &est, pairing, Alignment::None))
+                .context("aligning the estimate for the plot")
+        })
+        .transpose()?;
+    let series = ErrorSeries {
+        title: &title,
+        label: "RPE (m)",
+        timestamps: &result.timestamps,
+        errors: &result.errors_m,
+    };
+    plot_and_print(&args.input, aligned.as_ref(), &series, &result.stats)
 }
 
-/// The plot of `--plot`: the aligned trajectories seen from above beside the error series.
-fn plot_top_view_and_errors(
-    path: &Path,
-    aligned: &AteResult,
+/// The output `ate` and `rpe` share: with `--plot`, the `aligned` trajectories seen from above
+/// beside the error series; then the statistics (a table, or JSON with `--json`).
+fn plot_and_print(
+    input: &PairArgs,
+    aligned: Option<&AteResult>,
     series: &ErrorSeries,
+    stats: &ErrorStats,
 ) -> anyhow::Result<()> {
-    let view = TopView {
-        reference: &aligned.reference_positions,
-        estimate: &aligned.aligned_estimate_positions,
-    };
-    plot_errors(path, &view, series)?;
-    Ok(())
+    if let (Some(path), Some(aligned)) = (&input.plot, aligned) {
+        let view = TopView {
+            reference: &aligned.reference_positions,
+            estimate: &aligned.aligned_estimate_positions,
+        };
+        plot_errors(path, &view, series)?;
+    }
+    print_stats(series.title, stats, input.json)
 }
 
 fn run_relations(args: &RelationsArgs) -> anyhow::Result<()> {
