@@ -23,17 +23,22 @@
 
 pub mod hit_means;
 pub mod proposal;
+pub mod relocalise;
 
+use crate::cloud::scan_points;
 use crate::error::check_fields;
+use crate::icp_slam::loop_closure::SearchSource;
 use crate::motion::{odometry_poses, MotionModelConfig, ScanOdometryConfig};
 use crate::particles::{
     effective_sample_size, filter_checks, low_variance_resample, moved_enough, normalized_weights,
 };
+use crate::point_map::Keyframe;
 use crate::LidarError;
 use hit_means::HitMeans;
 use proposal::{propose, GridScorer, PreparedScan, ProposalConfig};
-use rand::SeedableRng;
+use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use relocalise::{relocalise, RelocalisationConfig};
 use serde::{Deserialize, Serialize};
 use slamkit_core::pose::{pose2_to_pose3, wrap_angle};
 use slamkit_core::{LaserScan, Pose2, StageTimings, Trajectory};
@@ -77,6 +82,8 @@ pub struct RbpfConfig {
     pub weight_temperature: f64,
     /// Scans with fewer usable beams are skipped.
     pub min_scan_points: usize,
+    /// Matching against a particle's own past on re-entering mapped ground ([`relocalise`]).
+    pub relocalisation: RelocalisationConfig,
 }
 
 impl Default for RbpfConfig {
@@ -100,6 +107,7 @@ impl Default for RbpfConfig {
             resample_threshold: 0.5,
             weight_temperature: 1.0,
             min_scan_points: 20,
+            relocalisation: RelocalisationConfig::default(),
         }
     }
 }
@@ -122,6 +130,13 @@ impl RbpfConfig {
                 "motion",
                 f64::NAN,
                 "a motion noise value is out of range",
+            ));
+        }
+        if !self.relocalisation.is_valid() {
+            return Err(LidarError::invalid_config(
+                "relocalisation",
+                f64::NAN,
+                "a relocalisation value is out of range",
             ));
         }
         self.scan_odometry.icp.validate()?;
@@ -163,6 +178,8 @@ impl RbpfConfig {
 struct Node {
     scan: usize,
     world_from_base: Pose2,
+    /// The update's scan points (base frame), shared by every particle's node of the update.
+    cloud: Arc<Keyframe>,
     parent: Option<Arc<Node>>,
 }
 
@@ -221,6 +238,8 @@ pub struct RbpfStats {
     pub matches_failed: usize,
     /// Resampling steps.
     pub resamples: usize,
+    /// Particle poses moved by a relocalisation match.
+    pub relocalisations: usize,
     /// True when the log's wheel odometry was used, false for scan-to-scan ICP odometry.
     pub wheel_odometry: bool,
     /// Scans scan-to-scan ICP odometry could not align.
@@ -320,6 +339,7 @@ impl Rbpf {
         let node = Arc::new(Node {
             scan: index,
             world_from_base: Pose2::identity(),
+            cloud: Arc::new(self.keep(scan)),
             parent: None,
         });
         let particle = Particle {
@@ -344,6 +364,9 @@ impl Rbpf {
     ) {
         self.stats.updates += 1;
         let started = Instant::now();
+        self.relocalise(scan, increment);
+        let relocalised = Instant::now();
+        let cloud = Arc::new(self.keep(scan));
         let config = &self.config;
         for particle in &mut self.particles {
             let scorer = GridScorer::new(&particle.grid, particle.means.as_ref(), &config.proposal);
@@ -373,17 +396,48 @@ impl Rbpf {
             particle.node = Arc::new(Node {
                 scan: index,
                 world_from_base: particle.world_from_base,
+                cloud: cloud.clone(),
                 parent: Some(particle.node.clone()),
             });
         }
         let inserted = Instant::now();
         self.resample_if_needed();
-        self.timings.record("proposal", ms(started, proposed));
+        self.timings.record("relocalise", ms(started, relocalised));
+        self.timings.record("proposal", ms(relocalised, proposed));
         self.timings.record("map_update", ms(proposed, inserted));
         self.timings.record_since("resample", inserted);
         if self.stats.updates % 50 == 0 {
             let shared = shared_tile_stats(self.particles.iter().map(|p| &p.grid)).bytes;
             self.stats.peak_shared_bytes = self.stats.peak_shared_bytes.max(shared);
+        }
+    }
+
+    /// The scan's points as kept with the update's nodes.
+    fn keep(&self, scan: &LaserScan) -> Keyframe {
+        let c = &self.config;
+        let points = scan_points(scan, c.min_range_m, c.relocalisation.search.max_range_m);
+        c.relocalisation.keep(&points)
+    }
+
+    /// Every few updates, moves each particle that finds the scan in its own past to the
+    /// matched pose (less the odometry `increment`, which the proposal adds back).
+    fn relocalise(&mut self, scan: &LaserScan, increment: &Pose2) {
+        let c = &self.config.relocalisation;
+        if !c.enabled || self.stats.updates % c.every_updates.max(1) != 0 {
+            return;
+        }
+        let points = scan_points(scan, self.config.min_range_m, c.search.max_range_m);
+        let source = SearchSource::new(&points, &c.search);
+        for particle in &mut self.particles {
+            if !self.rng.gen_bool(c.fraction) {
+                continue;
+            }
+            let predicted = particle.world_from_base * increment;
+            let Some(matched) = relocalise(&particle.node, &predicted, &source, c) else {
+                continue;
+            };
+            particle.world_from_base = matched * increment.inverse();
+            self.stats.relocalisations += 1;
         }
     }
 

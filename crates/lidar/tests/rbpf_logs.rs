@@ -3,12 +3,13 @@
 //! it builds. Logs: Intel Research Lab and ACES (CARMEN text decoded from the benchmark's ROS
 //! bags), MIT CSAIL (original CARMEN log); see `$SLAMKIT_DATA/lidar2d/SOURCES.md`.
 //!
-//! All runs use 10 particles (MRPT's rbpf-slam example count), seed 1 and the default
-//! configuration. The bounds are regression bounds slightly above what seed 1 reaches (measured
-//! with `slamkit lidar LOG --method rbpf --particles 10`, which prints the relations metric:
-//! Intel 0.0313 m, ACES 0.0900 m, MIT CSAIL 0.0419 m mean translational error). The issue's
-//! targets (Intel ≤ 0.065, ACES ≤ 0.060, CSAIL ≤ 0.049 m) hold for this seed on Intel and CSAIL
-//! only; over seeds 1–3 the medians meet CSAIL's alone (BENCHMARKS.md).
+//! All runs use 10 particles (MRPT's rbpf-slam example count) and the default configuration;
+//! the bounds are the targets (the better of GMapping and MRPT's rbpf-slam: Intel
+//! ≤ 0.065, ACES ≤ 0.060, MIT CSAIL ≤ 0.049 m mean translational relations error). Intel and
+//! CSAIL run seed 1 (measured 0.0309 and 0.0416 m with `slamkit lidar LOG --method rbpf
+//! --particles 10`, which prints the relations metric); ACES, whose loops close by
+//! relocalisation at a few seeds' luck, checks the median of seeds 1–3 (measured 0.0719,
+//! 0.0472, 0.0561 m: median 0.0561 m; seeds 4 and 5 give 0.0658 and 0.0504 m, BENCHMARKS.md).
 //! Skipped when `SLAMKIT_DATA` is not set; run with `--release`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers fail loudly
 
@@ -66,7 +67,7 @@ fn rbpf_intel() {
         return;
     };
     let (_, out, err) = intel(&dir);
-    assert!(*err < 0.04, "Intel mean error {err} m");
+    assert!(*err <= 0.065, "Intel mean error {err} m");
     // Copy-on-write tiles: the 10 maps together take far less than 10 separate maps.
     let m = out.stats.memory_end;
     assert!(m.shared_bytes * 4 < m.unshared_bytes, "{m:?}");
@@ -77,13 +78,18 @@ fn rbpf_aces() {
     let Some(dir) = data_dir("rbpf_aces") else {
         return;
     };
-    let (_, _, err) = run(
-        &dir,
-        "aces/aces.fromrosbag.clf.gz",
-        "aces/aces.relations",
-        &config(),
-    );
-    assert!(err < 0.095, "ACES mean error {err} m");
+    let mut errors: Vec<f64> = (1..=3)
+        .map(|seed| {
+            let config = RbpfConfig { seed, ..config() };
+            let log = "aces/aces.fromrosbag.clf.gz";
+            run(&dir, log, "aces/aces.relations", &config).2
+        })
+        .collect();
+    eprintln!("ACES mean errors, seeds 1-3: {errors:?} m");
+    // No seed may lose a loop (a lost closure costs 0.1-0.15 m of mean error).
+    assert!(errors.iter().all(|e| *e < 0.08), "{errors:?}");
+    errors.sort_by(f64::total_cmp);
+    assert!(errors[1] <= 0.060, "ACES median error {} m", errors[1]);
 }
 
 #[test]
@@ -97,7 +103,7 @@ fn rbpf_mit_csail() {
         "mit-csail/mit-csail.relations",
         &config(),
     );
-    assert!(err < 0.048, "MIT CSAIL mean error {err} m");
+    assert!(err <= 0.049, "MIT CSAIL mean error {err} m");
 }
 
 /// Global localisation in the map particle-filter SLAM built from the Intel log: a stretch of

@@ -10,7 +10,7 @@
 use crate::cloud::voxel_downsample;
 use crate::correlative::{correlative_match, CorrelativeConfig};
 use crate::error::check_fields;
-use crate::icp::{align, IcpConfig};
+use crate::icp::{align, IcpConfig, IcpResult};
 use crate::nn::{GridIndex, NearestNeighbours};
 use crate::point_map::{index_keyframes, Keyframe};
 use crate::LidarError;
@@ -176,11 +176,9 @@ pub fn find_closures(
         return Vec::new();
     };
     let pose = newest.world_from_base;
-    let fine_window = config.correlative.linear_window_m;
-    let window = (fine_window + config.window_growth * open_distance_m)
-        .min(config.max_window_m)
-        .max(fine_window);
+    let window = search_window(open_distance_m, config);
     let old = to.saturating_sub(config.min_separation_keyframes);
+    let reach = candidate_reach(window, config);
     let mut candidates: Vec<(f64, usize)> = keyframes
         .get(..old)
         .unwrap_or_default()
@@ -190,16 +188,10 @@ pub fn find_closures(
             let d = kf.world_from_base.translation.vector - pose.translation.vector;
             (d.norm(), j)
         })
-        .filter(|(d, _)| *d <= config.search_radius_m + window - fine_window)
+        .filter(|(d, _)| *d <= reach)
         .collect();
     candidates.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let source: Vec<Point2<f64>> = newest
-        .points
-        .iter()
-        .filter(|p| p.coords.norm() < config.max_range_m)
-        .copied()
-        .collect();
-    let coarse_source = voxel_downsample(&source, config.search_voxel_m);
+    let source = SearchSource::new(&newest.points, config);
     candidates.truncate(config.max_candidates);
     // Candidates are independent: search them in parallel; `collect` keeps their order, so
     // the result does not depend on the thread count.
@@ -207,27 +199,7 @@ pub fn find_closures(
         .into_par_iter()
         .filter_map(|(_, from)| {
             let submap = submap(keyframes, from, old, config)?;
-            let guess = if window > fine_window {
-                let wide = CorrelativeConfig {
-                    linear_window_m: window,
-                    resolution_m: config.wide_resolution_m,
-                    sigma_m: config.wide_resolution_m,
-                    ..config.correlative.clone()
-                };
-                correlative_match(&coarse_source, submap.points(), &pose, &wide)
-                    .ok()
-                    .filter(|c| c.score >= config.min_score)?
-                    .target_from_source
-            } else {
-                pose
-            };
-            let coarse =
-                correlative_match(&coarse_source, submap.points(), &guess, &config.correlative)
-                    .ok()
-                    .filter(|c| c.score >= config.min_score)?;
-            let fine = align(&source, &submap, &coarse.target_from_source, &config.icp)
-                .ok()
-                .filter(|r| r.goodness >= config.min_goodness)?;
+            let fine = match_submap(&source, &submap, &pose, window, config)?;
             let world_from_from = keyframes.get(from)?.world_from_base;
             Some(Closure {
                 from,
@@ -237,6 +209,80 @@ pub fn find_closures(
             })
         })
         .collect()
+}
+
+/// Half-width of the translation window of a search after `open_distance_m` of travel since
+/// the last closure \[m\]: the fine window grown by `window_growth` of that distance, at most
+/// `max_window_m`.
+pub fn search_window(open_distance_m: f64, config: &LoopClosureConfig) -> f64 {
+    let fine_window = config.correlative.linear_window_m;
+    (fine_window + config.window_growth * open_distance_m)
+        .min(config.max_window_m)
+        .max(fine_window)
+}
+
+/// Old keyframes this close to the estimated pose are candidates for a search with
+/// translation window `window` \[m\].
+pub fn candidate_reach(window: f64, config: &LoopClosureConfig) -> f64 {
+    config.search_radius_m + window - config.correlative.linear_window_m
+}
+
+/// A scan's points prepared for [`match_submap`]: beams beyond `max_range_m` left out, and a
+/// voxel-thinned copy for the correlative search.
+pub struct SearchSource {
+    points: Vec<Point2<f64>>,
+    coarse: Vec<Point2<f64>>,
+}
+
+impl SearchSource {
+    /// `points` (base frame) prepared for a search with `config`.
+    pub fn new(points: &[Point2<f64>], config: &LoopClosureConfig) -> Self {
+        let points: Vec<Point2<f64>> = points
+            .iter()
+            .filter(|p| p.coords.norm() < config.max_range_m)
+            .copied()
+            .collect();
+        let coarse = voxel_downsample(&points, config.search_voxel_m);
+        Self { points, coarse }
+    }
+}
+
+/// Matches `source` against `submap` (world frame) within `window` \[m\] of `pose` (the
+/// source's estimated `world_from_base`): a wide correlative pass when `window` is wider than
+/// the fine one, a fine correlative pass, then ICP. The ICP result (`target_from_source` is the
+/// corrected world pose) when every stage reaches its minimum score.
+pub fn match_submap(
+    source: &SearchSource,
+    submap: &GridIndex,
+    pose: &Pose2,
+    window: f64,
+    config: &LoopClosureConfig,
+) -> Option<IcpResult> {
+    let guess = if window > config.correlative.linear_window_m {
+        let wide = CorrelativeConfig {
+            linear_window_m: window,
+            resolution_m: config.wide_resolution_m,
+            sigma_m: config.wide_resolution_m,
+            ..config.correlative.clone()
+        };
+        correlative_match(&source.coarse, submap.points(), pose, &wide)
+            .ok()
+            .filter(|c| c.score >= config.min_score)?
+            .target_from_source
+    } else {
+        *pose
+    };
+    let coarse = correlative_match(&source.coarse, submap.points(), &guess, &config.correlative)
+        .ok()
+        .filter(|c| c.score >= config.min_score)?;
+    align(
+        &source.points,
+        submap,
+        &coarse.target_from_source,
+        &config.icp,
+    )
+    .ok()
+    .filter(|r| r.goodness >= config.min_goodness)
 }
 
 /// The keyframes around `centre` (older than `end`) in one point map, world frame.

@@ -206,6 +206,13 @@ fn invalid_config_is_rejected() {
             weight_temperature: 0.5,
             ..RbpfConfig::default()
         },
+        RbpfConfig {
+            relocalisation: RelocalisationConfig {
+                fraction: 1.5,
+                ..RelocalisationConfig::default()
+            },
+            ..RbpfConfig::default()
+        },
     ] {
         assert!(matches!(
             Rbpf::new(config),
