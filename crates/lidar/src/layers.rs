@@ -23,6 +23,9 @@
 //! * a match corrects the prior only along the directions the scan constrains
 //!   ([`degeneracy`]: one wall in range pins the distance to it, not the position along it),
 //!   and only within a gate around the prior; keyframes go in at the corrected pose;
+//! * each new keyframe is searched against old keyframes near it (of any layer) with a wide
+//!   window ([`mod@relocalise`]), and a clearly better, plausible match moves the pose past the
+//!   gate, spreading the correction over the keyframes of the drift;
 //! * the pose is 3D: x, y and yaw from the layer's map, height from the range finders, roll
 //!   and pitch from the flight controller.
 //!
@@ -33,15 +36,18 @@ pub mod degeneracy;
 pub mod height;
 pub mod layer_map;
 pub mod layer_pf;
+pub mod relocalise;
 pub mod velocity;
 
 use crate::cloud::{estimate_normals, scan_points};
 use crate::icp_slam::{IcpSlamConfig, ScanStatus};
+use crate::point_map::Keyframe;
 use crate::LidarError;
 use degeneracy::{remap, scan_information, weakest};
 use height::{HeightConfig, HeightTracker};
 use layer_map::{LayerIcpMap, PreparedScan};
 use nalgebra::{Matrix3, Point3, Translation3, UnitQuaternion, Vector2};
+use relocalise::{partial_correction, relocalise, share, LoggedKeyframe, Query, RelocaliseConfig};
 use serde::{Deserialize, Serialize};
 use slamkit_core::{LaserScan, Pose2, Pose3, StageTimings};
 use std::collections::BTreeMap;
@@ -91,6 +97,8 @@ pub struct LayeredSlamConfig {
     pub gate_rad: f64,
     /// Growth of the heading gate with the time since the last accepted match \[rad/s\].
     pub gate_growth_radps: f64,
+    /// Re-localisation on old keyframes, past the gate ([`mod@relocalise`]).
+    pub relocalise: RelocaliseConfig,
     /// Scan matching and keyframe insertion in every layer: the ICP, correlative fallback,
     /// range, normal, map and insertion settings of ICP-SLAM (its odometry and loop-closure
     /// settings are not used). By default every keyframe is kept, so that a layer's whole map
@@ -114,6 +122,7 @@ impl Default for LayeredSlamConfig {
             gate_growth_mps: 0.1,
             gate_rad: 0.03,
             gate_growth_radps: 0.1,
+            relocalise: RelocaliseConfig::default(),
             slam: IcpSlamConfig {
                 map_keyframes: 0,
                 ..IcpSlamConfig::default()
@@ -126,6 +135,7 @@ impl LayeredSlamConfig {
     /// Checks every field's range.
     pub fn validate(&self) -> Result<(), LidarError> {
         self.slam.validate()?;
+        self.relocalise.validate()?;
         let tilt = ("max_tilt_rad", self.max_tilt_rad);
         let window = ("velocity_window_s", self.velocity_window_s);
         let bad = self
@@ -204,6 +214,9 @@ pub struct LayeredEstimate {
     pub layer: Option<i64>,
     /// How the scan was used.
     pub status: LayerScanStatus,
+    /// The planar pose without the re-localisations' corrections: a path with no jumps, whose
+    /// increments are the motion between scans (odometry for another filter).
+    pub smooth_world_from_base: Pose2,
 }
 
 /// Counters over a run.
@@ -225,6 +238,8 @@ pub struct LayeredStats {
     pub scans_degenerate: usize,
     /// Matches rejected for moving the prediction farther than the gate.
     pub matches_rejected: usize,
+    /// Poses moved onto old keyframes past the gate ([`mod@relocalise`]).
+    pub relocalisations: usize,
 }
 
 /// A layer's map in the world frame.
@@ -257,6 +272,12 @@ pub struct LayeredIcpSlam {
     velocity: VelocityTracker,
     /// Time of the last accepted match \[s\].
     last_match_s: Option<f64>,
+    /// Every keyframe inserted, in time order, for re-localisation.
+    keyframe_log: Vec<LoggedKeyframe>,
+    /// Time of the last re-localisation \[s\].
+    last_relocalised_s: Option<f64>,
+    /// Product of every re-localisation's correction (corrected = this · smooth).
+    corrections: Pose2,
     stats: LayeredStats,
     timings: StageTimings,
 }
@@ -276,6 +297,9 @@ impl LayeredIcpSlam {
             last_gyro_yaw: None,
             velocity: VelocityTracker::new(config.velocity_window_s, config.max_speed_mps),
             last_match_s: None,
+            keyframe_log: Vec::new(),
+            last_relocalised_s: None,
+            corrections: Pose2::identity(),
             stats: LayeredStats::default(),
             timings: StageTimings::default(),
             config,
@@ -329,6 +353,7 @@ impl LayeredIcpSlam {
             ),
             layer: height.map(|h| h.layer),
             status,
+            smooth_world_from_base: renormalised(self.corrections.inverse() * pose),
         }
     }
 
@@ -429,10 +454,75 @@ impl LayeredIcpSlam {
             self.stats.scans_degenerate += 1;
         }
         let pose = renormalised(fixed.unwrap_or(guess));
-        if let Some(entry) = self.layers.get_mut(&layer) {
-            entry.record(&prepared, &pose, fixed.is_some(), &self.config.slam);
+        let inserted = self.layers.get_mut(&layer).is_some_and(|entry| {
+            entry.record(&prepared, &pose, fixed.is_some(), &self.config.slam)
+        });
+        if !inserted {
+            return (pose, status, fixed.is_some());
         }
-        (pose, status, fixed.is_some())
+        let query = Query {
+            scan: &prepared,
+            information: &information,
+            pose,
+            layer,
+            layer_height_m: self.config.height.layer_height_m,
+            time_s: scan.timestamp,
+        };
+        let found = self
+            .config
+            .relocalise
+            .enabled
+            .then(|| relocalise(&self.keyframe_log, &query, &self.config.relocalise))
+            .flatten();
+        let index = self
+            .layers
+            .get(&layer)
+            .map_or(0, |l| l.map().keyframes_inserted().saturating_sub(1));
+        self.keyframe_log.push(LoggedKeyframe {
+            layer,
+            index,
+            time_s: scan.timestamp,
+            keyframe: Keyframe {
+                world_from_base: pose,
+                points: prepared.points,
+                normals: prepared.normals,
+            },
+        });
+        match found {
+            Some(found) => {
+                let anchor = self
+                    .last_relocalised_s
+                    .map_or(found.anchor_s, |t| t.max(found.anchor_s));
+                self.correct(&pose, &found.world_from_base, anchor, scan.timestamp);
+                (found.world_from_base, status, true)
+            }
+            None => (pose, status, fixed.is_some()),
+        }
+    }
+
+    /// Moves the pose `from` of time `now_s` to `to`, and with it every keyframe and recent
+    /// pose since `anchor_s` by its share of the correction ([`relocalise::share`]).
+    fn correct(&mut self, from: &Pose2, to: &Pose2, anchor_s: f64, now_s: f64) {
+        let moved = |t: f64, p: &Pose2| {
+            renormalised(partial_correction(from, to, share(t, anchor_s, now_s)) * p)
+        };
+        let mut by_layer: BTreeMap<i64, BTreeMap<usize, Pose2>> = BTreeMap::new();
+        for k in self.keyframe_log.iter_mut().filter(|k| k.time_s > anchor_s) {
+            k.keyframe.world_from_base = moved(k.time_s, &k.keyframe.world_from_base);
+            by_layer
+                .entry(k.layer)
+                .or_default()
+                .insert(k.index, k.keyframe.world_from_base);
+        }
+        for (layer, poses) in by_layer {
+            if let Some(map) = self.layers.get_mut(&layer) {
+                map.relocate(|i| poses.get(&i).copied());
+            }
+        }
+        self.velocity.relocate(moved);
+        self.corrections = renormalised(partial_correction(from, to, 1.0) * self.corrections);
+        self.last_relocalised_s = Some(now_s);
+        self.stats.relocalisations += 1;
     }
 
     /// A raw match, if it is within the gate around `predicted` at time `t_s`, kept along the

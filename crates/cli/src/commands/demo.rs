@@ -190,6 +190,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
             "count": layer_files.len(),
             "switches": stats.layer_switches,
             "returns": stats.layer_returns,
+            "relocalisations": stats.relocalisations,
             "obstacle_edges": stats.obstacle_edges,
         },
         "wall_seconds": started.elapsed().as_secs_f64(),
@@ -314,13 +315,15 @@ fn run_pf(scans: &[LaserScan], config: &RbpfConfig) -> anyhow::Result<RbpfOutput
     Ok(output)
 }
 
-/// The scans with the layered estimate's planar pose as their odometry.
+/// The scans with the layered estimate's planar pose as their odometry, without its
+/// re-localisations (a jump in odometry would be motion to the particle filter, whose own map
+/// does not move with the layered maps).
 fn with_odometry(scans: &[LaserScan], estimates: &[LayeredEstimate]) -> Vec<LaserScan> {
     scans
         .iter()
         .zip(estimates)
         .map(|(scan, e)| LaserScan {
-            odometry: Some(pose3_to_pose2(&e.world_from_base)),
+            odometry: Some(e.smooth_world_from_base),
             ..scan.clone()
         })
         .collect()

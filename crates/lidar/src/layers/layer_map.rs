@@ -107,6 +107,16 @@ impl LayerIcpMap {
         }
     }
 
+    /// Moves the keyframes to new poses: `pose_of(i)` is the new pose of the `i`-th keyframe
+    /// inserted, or `None` to keep it.
+    pub fn relocate(&mut self, pose_of: impl Fn(usize) -> Option<Pose2>) {
+        let last = self.map.keyframes_inserted().checked_sub(1);
+        if let Some(pose) = last.and_then(&pose_of) {
+            self.last_keyframe = Some(pose);
+        }
+        self.map.relocate(pose_of);
+    }
+
     /// Records the final pose of a scan given to this layer (`accepted`: fixed by the map, not
     /// only predicted) and inserts the scan as a keyframe when the layer is empty, or the drone
     /// moved or turned far enough since the last keyframe and the pose was accepted (or the

@@ -133,6 +133,14 @@ impl VelocityTracker {
         }
     }
 
+    /// Moves every recorded pose: `moved(t, pose)` is the new pose of the one of time `t` (after
+    /// a re-localisation). The body-frame velocity is unchanged.
+    pub fn relocate(&mut self, moved: impl Fn(f64, &Pose2) -> Pose2) {
+        for (t, pose) in &mut self.history {
+            *pose = moved(*t, pose);
+        }
+    }
+
     /// Current body-frame twist `(vx, vy, ω)` \[m/s, m/s, rad/s\]; zero before two poses.
     pub fn twist(&self) -> Vector3<f64> {
         self.velocity
