@@ -14,8 +14,12 @@
 //! `resample_threshold · N` ([`crate::particles`]). Odometry comes from the log's wheel odometry,
 //! or from scan-to-scan ICP when the log has none ([`crate::motion`]).
 //!
-//! Loop closure needs no explicit step: when the robot re-enters mapped ground, particles whose
-//! map and trajectory agree with the scan gain weight and the others die out. The output is
+//! On re-entering mapped ground, particles whose map and trajectory agree with the scan gain
+//! weight and the others die out. Since every particle's matcher drifts metres over a long loop
+//! and resampling leaves them one lineage, half of them also search their own past for the scan
+//! every second update and, when it matches, move there before the proposal
+//! ([`relocalise`](mod@relocalise)); the weights then choose between the moved and the unmoved
+//! particles. The output is
 //! the trajectory of the particle with the highest log weight accumulated over its whole
 //! ancestry (GMapping's `weightSum`), read back through that ancestry; scans between two updates
 //! are placed by odometry, with the correction at the next update spread over them linearly.
@@ -82,7 +86,8 @@ pub struct RbpfConfig {
     pub weight_temperature: f64,
     /// Scans with fewer usable beams are skipped.
     pub min_scan_points: usize,
-    /// Matching against a particle's own past on re-entering mapped ground ([`relocalise`]).
+    /// Matching against a particle's own past on re-entering mapped ground
+    /// ([`relocalise`](mod@relocalise)).
     pub relocalisation: RelocalisationConfig,
 }
 
