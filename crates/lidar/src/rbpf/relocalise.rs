@@ -171,8 +171,7 @@ pub(super) fn relocalise(
         if submap.len() < search.icp.min_correspondences {
             return None;
         }
-        let fine = match_submap(source, &submap, predicted, window, search);
-        let fine = fine?;
+        let fine = match_submap(source, &submap, predicted, window, search)?;
         Some(fine.target_from_source)
     })
 }
