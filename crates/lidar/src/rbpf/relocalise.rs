@@ -58,7 +58,10 @@ pub struct RelocalisationConfig {
     pub normal_max_flatness: f64,
     /// The search itself: candidates, submap, windows and acceptance, as ICP-SLAM's loop
     /// closure (its pose-graph fields `every_keyframes`, `min_separation_keyframes`, `edge_*`,
-    /// `robust_scale` and `optimize_iterations` are not used here).
+    /// `robust_scale` and `optimize_iterations` are not used here). A `[relocalisation.search]`
+    /// table in a config file replaces the whole value: the fields it leaves out take ICP-SLAM's
+    /// loop-closure defaults (`max_candidates = 3`, `max_window_m = 10`, `min_goodness = 0.8`),
+    /// not this default's 2, 4 m and 0.65, so repeat those when setting any other field.
     pub search: LoopClosureConfig,
 }
 
