@@ -86,7 +86,7 @@ impl Default for RelocaliseConfig {
             min_age_s: 30.0,
             max_height_gap_m: 3.0,
             search_radius_m: 3.0,
-            max_keyframes: 10,
+            max_keyframes: 20,
             search_voxel_m: 0.05,
             correlative: CorrelativeConfig {
                 linear_window_m: 1.0,
@@ -100,7 +100,7 @@ impl Default for RelocaliseConfig {
             min_goodness: 0.8,
             min_constraint: 20.0,
             overlap_distance_m: 0.05,
-            min_gain: 0.15,
+            min_gain: 0.1,
             max_turn_rad: 0.1,
             max_shift_m: 0.1,
             max_drift_mps: 0.01,
