@@ -114,52 +114,29 @@ impl RelocaliseConfig {
     pub fn validate(&self) -> Result<(), LidarError> {
         self.icp.validate()?;
         let unit = |v: f64| (0.0..=1.0).contains(&v);
-        check_fields(
-            [
-                ("min_age_s", self.min_age_s, self.min_age_s >= 0.0),
-                (
-                    "max_height_gap_m",
-                    self.max_height_gap_m,
-                    self.max_height_gap_m >= 0.0,
-                ),
-                (
-                    "search_radius_m",
-                    self.search_radius_m,
-                    self.search_radius_m >= 0.0,
-                ),
-                (
-                    "search_voxel_m",
-                    self.search_voxel_m,
-                    self.search_voxel_m >= 0.0,
-                ),
-                ("min_score", self.min_score, unit(self.min_score)),
-                ("min_goodness", self.min_goodness, unit(self.min_goodness)),
-                (
-                    "min_constraint",
-                    self.min_constraint,
-                    self.min_constraint >= 0.0,
-                ),
-                (
-                    "overlap_distance_m",
-                    self.overlap_distance_m,
-                    self.overlap_distance_m > 0.0,
-                ),
-                ("min_gain", self.min_gain, unit(self.min_gain)),
-                ("max_turn_rad", self.max_turn_rad, self.max_turn_rad >= 0.0),
-                ("max_shift_m", self.max_shift_m, self.max_shift_m >= 0.0),
-                (
-                    "max_drift_mps",
-                    self.max_drift_mps,
-                    self.max_drift_mps >= 0.0,
-                ),
-                (
-                    "min_correction_m",
-                    self.min_correction_m,
-                    self.min_correction_m >= 0.0,
-                ),
-            ],
-            "out of range",
-        )
+        let non_negative = [
+            ("min_age_s", self.min_age_s),
+            ("max_height_gap_m", self.max_height_gap_m),
+            ("search_radius_m", self.search_radius_m),
+            ("search_voxel_m", self.search_voxel_m),
+            ("min_constraint", self.min_constraint),
+            ("max_turn_rad", self.max_turn_rad),
+            ("max_shift_m", self.max_shift_m),
+            ("max_drift_mps", self.max_drift_mps),
+            ("min_correction_m", self.min_correction_m),
+        ]
+        .map(|(field, value)| (field, value, value >= 0.0));
+        let bounded = [
+            ("min_score", self.min_score, unit(self.min_score)),
+            ("min_goodness", self.min_goodness, unit(self.min_goodness)),
+            ("min_gain", self.min_gain, unit(self.min_gain)),
+            (
+                "overlap_distance_m",
+                self.overlap_distance_m,
+                self.overlap_distance_m > 0.0,
+            ),
+        ];
+        check_fields(non_negative.into_iter().chain(bounded), "out of range")
     }
 }
 

@@ -163,6 +163,14 @@ fn bad_config_is_an_error() {
         ..LayeredSlamConfig::default()
     };
     assert!(LayeredIcpSlam::new(config).is_err());
+    for bad in [-1.0, f64::NAN] {
+        let mut config = LayeredSlamConfig::default();
+        config.relocalise.max_shift_m = bad;
+        assert!(LayeredIcpSlam::new(config).is_err());
+        let mut config = LayeredSlamConfig::default();
+        config.relocalise.min_gain = bad;
+        assert!(LayeredIcpSlam::new(config).is_err());
+    }
 }
 
 /// An occupancy grid of `world` from scans at the poses `(x, y, yaw)`.
