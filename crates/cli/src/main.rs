@@ -4,6 +4,7 @@
 //! benchmarks and users call it, so it changes only on purpose.
 
 mod commands;
+mod config_file;
 mod output;
 
 use clap::{Parser, Subcommand};

@@ -4,9 +4,11 @@
 
 use crate::commands::eval::load_relations;
 use crate::commands::lidar_pf;
+use crate::config_file::config_over;
 use crate::output::{peak_rss_bytes, prepare_out_dir, progress_bar, timings_json, write_report};
 use anyhow::Context;
 use serde::de::DeserializeOwned;
+use serde::Serialize;
 use serde_json::json;
 use slamkit_core::{LaserScan, Trajectory};
 use slamkit_io::carmen::{CarmenLog, SkipReason};
@@ -130,14 +132,11 @@ fn skip_reason_key(reason: &SkipReason) -> &'static str {
     }
 }
 
-/// The method's configuration: defaults overridden by the TOML file at `path`, when given.
-pub(crate) fn load_config<C: DeserializeOwned + Default>(path: Option<&Path>) -> anyhow::Result<C> {
-    let Some(path) = path else {
-        return Ok(C::default());
-    };
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    toml::from_str(&text).with_context(|| format!("parsing config {}", path.display()))
+/// The method's configuration: its defaults with the TOML file at `path` laid over them.
+pub(crate) fn load_config<C: Serialize + DeserializeOwned + Default>(
+    path: Option<&Path>,
+) -> anyhow::Result<C> {
+    config_over(C::default(), path)
 }
 
 /// The explicit `--relations`, else `<stem>.relations` beside the log (`intel.fromrosbag.clf.gz`

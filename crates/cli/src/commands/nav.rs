@@ -15,6 +15,7 @@ pub mod camera_slam;
 pub mod closed_loop;
 
 use crate::commands::plan::{parse_xy, save_rgb_png};
+use crate::config_file::config_over;
 use crate::output::{peak_rss_bytes, prepare_out_dir, timings_json, write_report};
 use anyhow::Context;
 use closed_loop::{run_nav_loop, FrameRecord, NavLoopConfig, NavOutcome};
@@ -64,7 +65,7 @@ pub fn run(args: &NavArgs) -> anyhow::Result<()> {
         None => Point2::new(world.nav_goal[0], world.nav_goal[1]),
     };
     let world_name = world.name.clone();
-    let config = load_config(args.config.as_deref())?;
+    let config = config_over(NavLoopConfig::default(), args.config.as_deref())?;
     let outcome = run_nav_loop(world, goal, args.seed, &config)?;
     let out = prepare_out_dir(&args.out)?;
     write_tum(&out.join("trajectory.tum"), &outcome.estimate)?;
@@ -112,16 +113,6 @@ pub fn run(args: &NavArgs) -> anyhow::Result<()> {
         out.display()
     );
     Ok(())
-}
-
-/// The loop settings from a TOML file (missing fields default), or the defaults.
-fn load_config(path: Option<&Path>) -> anyhow::Result<NavLoopConfig> {
-    let Some(path) = path else {
-        return Ok(NavLoopConfig::default());
-    };
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    toml::from_str(&text).with_context(|| format!("parsing {}", path.display()))
 }
 
 /// One line per camera frame: time, true and estimated `x, y, yaw` (m, degrees; empty when

@@ -18,6 +18,7 @@
 
 pub mod cameras;
 
+use crate::config_file::config_over;
 use crate::output::{peak_rss_bytes, prepare_out_dir, timings_json, write_report};
 use anyhow::Context;
 use serde_json::json;
@@ -108,7 +109,7 @@ pub fn run(args: &SimArgs) -> anyhow::Result<()> {
             Robot::Drone => RobotKind::Drone,
             Robot::DiffDrive => RobotKind::DiffDrive,
         },
-        ..load_config(args.config.as_deref())?
+        ..config_over(SimConfig::default(), args.config.as_deref())?
     };
     let sim = Simulation::new(world, config.clone(), args.seed)?;
     let duration_s = match args.duration {
@@ -170,16 +171,6 @@ pub fn run(args: &SimArgs) -> anyhow::Result<()> {
         out.display()
     );
     Ok(())
-}
-
-/// The settings of `--config`, or the defaults.
-fn load_config(path: Option<&Path>) -> anyhow::Result<SimConfig> {
-    let Some(path) = path else {
-        return Ok(SimConfig::default());
-    };
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    toml::from_str(&text).with_context(|| format!("parsing config {}", path.display()))
 }
 
 /// Writes `lidar.clf` and `lidar.relations`; returns the numbers of scans and relations.

@@ -1,6 +1,7 @@
 //! `slamkit vo`: visual odometry on an RGB-D or stereo dataset folder, with the trajectory,
 //! ground truth, point cloud and report written to the output folder.
 
+use crate::config_file::config_over;
 use crate::output::{peak_rss_bytes, prepare_out_dir, progress_bar, timings_json, write_report};
 use anyhow::Context;
 use serde_json::json;
@@ -171,31 +172,11 @@ fn load_config(args: &VoArgs, format: DatasetFormat) -> anyhow::Result<VoConfig>
     let Some(path) = &args.config else {
         return Ok(preset);
     };
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let overrides: toml::Table =
-        toml::from_str(&text).with_context(|| format!("parsing config {}", path.display()))?;
-    let mut merged = toml::Table::try_from(&preset).context("serialising the preset")?;
-    merge(&mut merged, overrides);
-    let config: VoConfig = merged
-        .try_into()
-        .with_context(|| format!("parsing config {}", path.display()))?;
+    let config = config_over(preset, Some(path))?;
     config
         .validate()
         .with_context(|| format!("checking config {}", path.display()))?;
     Ok(config)
-}
-
-/// Overwrites `base` with `top`, table by table.
-fn merge(base: &mut toml::Table, top: toml::Table) {
-    for (k, v) in top {
-        match (base.get_mut(&k), v) {
-            (Some(toml::Value::Table(b)), toml::Value::Table(t)) => merge(b, t),
-            (_, v) => {
-                base.insert(k, v);
-            }
-        }
-    }
 }
 
 fn print_summary(out: &Path, report: &serde_json::Value) {
