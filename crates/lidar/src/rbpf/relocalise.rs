@@ -9,8 +9,8 @@
 //! Each particle therefore searches, every few updates, for a place in its own past: an old pose
 //! of its trajectory (more than `min_separation_updates` updates back) near its predicted pose.
 //! The scans of that pose and its neighbours in time, placed at the particle's poses, form a
-//! submap, and the new scan is matched against it over a window that grows with the distance
-//! travelled since the particle's last such match — the constraint search of ICP-SLAM's loop
+//! submap, and the new scan is matched against it over a window that grows with the path the
+//! particle travelled since that old pose — the constraint search of ICP-SLAM's loop
 //! closure ([`crate::icp_slam::loop_closure`]: correlative search, Olson, ICRA 2009, then
 //! point-to-line ICP, Censi, ICRA 2008; the growing window of Hess et al., ICRA 2016). An
 //! accepted match moves the particle's pose before the proposal, so the climb starts within
@@ -58,10 +58,10 @@ pub struct RelocalisationConfig {
     pub normal_max_flatness: f64,
     /// The search itself: candidates, submap, windows and acceptance, as ICP-SLAM's loop
     /// closure (its pose-graph fields `every_keyframes`, `min_separation_keyframes`, `edge_*`,
-    /// `robust_scale` and `optimize_iterations` are not used here). A `[relocalisation.search]`
-    /// table in a config file replaces the whole value: the fields it leaves out take ICP-SLAM's
-    /// loop-closure defaults (`max_candidates = 3`, `max_window_m = 10`, `min_goodness = 0.8`),
-    /// not this default's 2, 4 m and 0.65, so repeat those when setting any other field.
+    /// `robust_scale` and `optimize_iterations` are not used here). `slamkit`'s `--config`
+    /// lays a file over these defaults, so a partial `[relocalisation.search]` table keeps
+    /// the 2 candidates, 4 m and 0.65 below; deserialised on its own with serde, a partial
+    /// table takes ICP-SLAM's loop-closure defaults (3, 10 m, 0.8) for the fields it omits.
     pub search: LoopClosureConfig,
 }
 
