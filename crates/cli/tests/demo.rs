@@ -54,6 +54,29 @@ fn check_bounds(report: &serde_json::Value, icp_mean_m: f64, pf_mean_m: f64) {
     }
 }
 
+/// The kidnapped-drone check (`metrics.layer_localisation`): the layer whose particles spread
+/// least is within one of the true layer (held on `small` and `large` seeds 1–3, not on
+/// `office`). Its position is not checked: in `small` the particles settle on the mirror image
+/// of the pose through the room's central pillar (1.8 m off after 200 scans, seeds 1–3), as the
+/// scans from there do not reach the one wall stub that breaks the symmetry (BENCHMARKS.md,
+/// "Layer choice by particles").
+fn check_layer_choice(report: &serde_json::Value) {
+    let found = &report["metrics"]["layer_localisation"];
+    let chosen = found["chosen_layer"].as_i64().expect("a chosen layer");
+    let truth = found["true_layer"].as_i64().unwrap();
+    let candidates = found["candidates"].as_array().unwrap().len();
+    eprintln!("layer choice: {chosen} (true {truth}) of {candidates} candidates");
+    assert!(candidates >= 1);
+    assert!(
+        (chosen - truth).abs() <= 1,
+        "chose layer {chosen}, true {truth}"
+    );
+    assert!(found["position_error_m"]["end"]
+        .as_f64()
+        .unwrap()
+        .is_finite());
+}
+
 #[test]
 fn demo_small_within_the_seed_errors_and_writes_every_output() {
     let dir = tempfile::tempdir().unwrap();
@@ -78,6 +101,7 @@ fn demo_small_within_the_seed_errors_and_writes_every_output() {
             .unwrap_or(0);
         assert!(len > 0, "{file} missing or empty");
     }
+    check_layer_choice(&report);
     let layers = report["layers"]["count"].as_u64().unwrap();
     assert!(layers >= 2, "the flight crosses height layers: {layers}");
     let html = std::fs::read_to_string(dir.path().join("report.html")).unwrap();

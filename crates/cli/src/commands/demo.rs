@@ -20,12 +20,14 @@
 //! `cloud.ply` (the merged layer maps), `trajectory_pf.tum` and `map_pf.{pgm,yaml,png}` (the
 //! particle filter's best trajectory and map), `errors_icp.png` and `errors_pf.png` (top view
 //! and error over time), `report.json` (`metrics.{icp,pf}.position_error_mean_m`,
-//! `metrics.{icp,pf}.position_error_max_m`) and
+//! `metrics.{icp,pf}.position_error_max_m`, and `metrics.layer_localisation`: the kidnapped-drone
+//! check of [`layer_loc`], the particle-filter layer choice on the layer maps) and
 //! `report.html` (all of it on one page, images embedded). The same flight seen by the
 //! drone's simulated RGB-D camera goes through RGB-D visual odometry ([`vo_run`]): `rgbd/` (TUM
 //! RGB-D folder), `trajectory_vo.tum`, `errors_vo.png`, `metrics.vo.ate_rmse_m`.
 
 mod html;
+mod layer_loc;
 mod vo_run;
 
 use crate::output::{peak_rss_bytes, prepare_out_dir, progress_bar, timings_json, write_report};
@@ -143,7 +145,10 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     write_tum(&out.join("trajectory.tum"), &icp.estimate)?;
     write_tum(&out.join("groundtruth.tum"), &run.ground_truth)?;
     let sim_from_slam = sim_from_slam(&run)?;
-    let layer_files = write_maps(&out, &run, &estimates, &sim_from_slam)?;
+    let (layer_files, layer_maps) = write_maps(&out, &run, &estimates, &sim_from_slam)?;
+    let layer_loc =
+        layer_loc::relocalise(&run, &estimates, &layer_maps, sim.world.height_m, args.seed);
+    drop(layer_maps);
     let cloud: Vec<Point3<f64>> = slam
         .merged_cloud()
         .iter()
@@ -206,6 +211,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
             "icp": metrics_json(&icp, &run),
             "pf": metrics_json(&pf, &run),
             "vo": vo_run::metrics_json(&vo),
+            "layer_localisation": layer_loc::metrics_json(layer_loc.as_ref()),
         },
         "vo": vo_run::report_json(&vo),
     });
@@ -246,6 +252,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         "RGB-D VO ATE RMSE {:.3} m (SE(3)-aligned)",
         vo.ate.stats.rmse
     );
+    println!("{}", layer_loc::summary(layer_loc.as_ref()));
     println!("outputs in {}", out.display());
     Ok(())
 }
@@ -445,13 +452,13 @@ fn metrics_json(m: &MethodResult, run: &LidarRun) -> serde_json::Value {
 }
 
 /// Writes one grid per height layer (`maps/layer_NNN.*`) and one of every scan (`map.*`), each
-/// scan inserted at its estimated pose.
+/// scan inserted at its estimated pose; returns the files and the layer grids (simulator frame).
 fn write_maps(
     out: &Path,
     run: &LidarRun,
     estimates: &[LayeredEstimate],
     sim_from_slam: &Pose3,
-) -> anyhow::Result<Vec<LayerFile>> {
+) -> anyhow::Result<(Vec<LayerFile>, BTreeMap<i64, OccupancyGrid>)> {
     let grid_config = OccupancyGridConfig::default();
     let mut all = OccupancyGrid::new(grid_config.clone())?;
     let mut layers: BTreeMap<i64, (OccupancyGrid, usize)> = BTreeMap::new();
@@ -490,7 +497,8 @@ fn write_maps(
             png,
         });
     }
-    Ok(files)
+    let grids = layers.into_iter().map(|(k, (grid, _))| (k, grid)).collect();
+    Ok((files, grids))
 }
 
 /// Writes `points` as an ASCII PLY point cloud.

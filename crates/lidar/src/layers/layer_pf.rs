@@ -22,7 +22,8 @@ use std::collections::BTreeMap;
 
 /// The layers among `mapped` whose height span `[k, k + 1) · layer_height_m` meets the heights
 /// the range readings allow under a ceiling at `ceiling_m` (heights above the floor \[m\]). A
-/// missing or non-finite reading does not bound its side.
+/// missing or non-finite reading does not bound its side; bounds that cross (noisy readings)
+/// are taken the other way round.
 pub fn candidate_layers(
     mapped: impl IntoIterator<Item = i64>,
     up_m: Option<f64>,
@@ -33,6 +34,9 @@ pub fn candidate_layers(
     let ok = |r: Option<f64>| r.filter(|v| v.is_finite() && *v >= 0.0);
     let lowest = ok(down_m).map_or(f64::NEG_INFINITY, |d| d + height.down_offset_m);
     let highest = ok(up_m).map_or(f64::INFINITY, |u| ceiling_m - u - height.up_offset_m);
+    // readings that disagree by their noise (or a tilt, which lengthens both) can put the
+    // lower bound above the upper one: the height is then between them
+    let (lowest, highest) = (lowest.min(highest), lowest.max(highest));
     let h = height.layer_height_m;
     mapped
         .into_iter()
@@ -82,6 +86,14 @@ impl LayerLocaliser {
         }
     }
 
+    /// Particles of each candidate layer's global initialisation, in layer order.
+    pub fn global_particles(&self) -> Vec<usize> {
+        self.filters
+            .iter()
+            .map(|(_, mcl)| mcl.stats().global_particles)
+            .collect()
+    }
+
     /// The latest estimate of every candidate layer that has one.
     pub fn estimates(&self) -> &BTreeMap<i64, MclEstimate> {
         &self.latest
@@ -93,5 +105,21 @@ impl LayerLocaliser {
             .iter()
             .min_by(|a, b| a.1.spread_m.total_cmp(&b.1.spread_m))
             .map(|(k, e)| (*k, *e))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn crossing_bounds_still_give_the_layer_between_them() {
+        let h = HeightConfig::default();
+        // 1 m ceiling, true height 0.40 m: down 0.371 (+0.03 = 0.401), up 0.571 (0.399 max)
+        let layers = candidate_layers(0..20, Some(0.571), Some(0.371), 1.0, &h);
+        assert_eq!(layers, vec![7, 8]);
+        // consistent readings: 0.32 to 0.33 m is layer 6 only
+        let layers = candidate_layers(0..20, Some(0.64), Some(0.29), 1.0, &h);
+        assert_eq!(layers, vec![6]);
     }
 }
