@@ -116,6 +116,7 @@ fn demo_small_within_the_seed_errors_and_writes_every_output() {
         })
         .count();
     assert!(plots >= 2, "{plots} error plots");
+    assert!(html.contains("layer choice by particles: layer "));
     let images = html.matches("src=\"data:image/png;base64,").count();
     assert_eq!(images, plots + 2 + layers as usize);
 }

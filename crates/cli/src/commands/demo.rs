@@ -238,6 +238,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
                 png: l.png.clone(),
             })
             .collect(),
+        layer_choice: layer_loc::summary(layer_loc.as_ref()),
     };
     html::write(&out.join("report.html"), &page)?;
     println!(
@@ -252,7 +253,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         "RGB-D VO ATE RMSE {:.3} m (SE(3)-aligned)",
         vo.ate.stats.rmse
     );
-    println!("{}", layer_loc::summary(layer_loc.as_ref()));
+    println!("{}", page.layer_choice);
     println!("outputs in {}", out.display());
     Ok(())
 }

@@ -33,6 +33,8 @@ pub struct Page<'a> {
     pub maps: Vec<(&'a str, PathBuf)>,
     /// One map per layer, lowest first.
     pub layers: Vec<LayerImage>,
+    /// The kidnapped-drone layer choice, one line of plain text.
+    pub layer_choice: String,
 }
 
 /// Writes the page to `path`.
@@ -66,6 +68,7 @@ pub fn write(path: &Path, page: &Page) -> anyhow::Result<()> {
         );
     }
     h.push_str("</table>\n");
+    let _ = writeln!(h, "<p>Kidnapped drone, {}</p>", page.layer_choice);
     for (name, _, _, png) in &page.methods {
         let _ = writeln!(
             h,
