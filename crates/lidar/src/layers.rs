@@ -40,6 +40,7 @@ pub mod relocalise;
 pub mod velocity;
 
 use crate::cloud::{estimate_normals, scan_points};
+use crate::error::check_fields;
 use crate::icp_slam::{IcpSlamConfig, ScanStatus};
 use crate::point_map::Keyframe;
 use crate::LidarError;
@@ -136,39 +137,26 @@ impl LayeredSlamConfig {
     pub fn validate(&self) -> Result<(), LidarError> {
         self.slam.validate()?;
         self.relocalise.validate()?;
-        let tilt = ("max_tilt_rad", self.max_tilt_rad);
-        let window = ("velocity_window_s", self.velocity_window_s);
-        let bad = self
-            .height
-            .invalid_field()
-            .or_else(|| {
-                (!(self.max_tilt_rad.is_finite() && self.max_tilt_rad >= 0.0)).then_some(tilt)
-            })
-            .or_else(|| {
-                (!(self.velocity_window_s.is_finite() && self.velocity_window_s > 0.0))
-                    .then_some(window)
-            })
-            .or_else(|| {
-                [
-                    ("min_constraint", self.min_constraint),
-                    ("max_speed_mps", self.max_speed_mps),
-                    ("flow_time_constant_s", self.flow_time_constant_s),
-                    ("gate_m", self.gate_m),
-                    ("gate_growth_mps", self.gate_growth_mps),
-                    ("gate_rad", self.gate_rad),
-                    ("gate_growth_radps", self.gate_growth_radps),
-                ]
-                .into_iter()
-                .find(|(_, v)| !(v.is_finite() && *v >= 0.0))
-            });
-        match bad {
-            Some((field, value)) => Err(LidarError::InvalidConfig {
-                field,
-                value: value.to_string(),
-                reason: "out of range",
-            }),
-            None => Ok(()),
-        }
+        let non_negative = |field, value: f64| (field, value, value >= 0.0);
+        let checks = [
+            non_negative("max_tilt_rad", self.max_tilt_rad),
+            (
+                "velocity_window_s",
+                self.velocity_window_s,
+                self.velocity_window_s > 0.0,
+            ),
+            non_negative("min_constraint", self.min_constraint),
+            non_negative("max_speed_mps", self.max_speed_mps),
+            non_negative("flow_time_constant_s", self.flow_time_constant_s),
+            non_negative("gate_m", self.gate_m),
+            non_negative("gate_growth_mps", self.gate_growth_mps),
+            non_negative("gate_rad", self.gate_rad),
+            non_negative("gate_growth_radps", self.gate_growth_radps),
+        ];
+        check_fields(
+            self.height.field_checks().into_iter().chain(checks),
+            "out of range",
+        )
     }
 }
 

@@ -13,6 +13,7 @@
 //! a neighbouring layer only once the height is `hysteresis_m` past the boundary, so noise on a
 //! boundary does not flip between two maps.
 
+use crate::error::FieldCheck;
 use serde::{Deserialize, Serialize};
 
 /// Parameters of the height and layer tracker.
@@ -45,9 +46,9 @@ impl Default for HeightConfig {
 }
 
 impl HeightConfig {
-    /// The first value out of range, by name.
-    pub(crate) fn invalid_field(&self) -> Option<(&'static str, f64)> {
-        let checks = [
+    /// Each field with whether it is in range, for [`check_fields`](crate::error::check_fields).
+    pub(crate) fn field_checks(&self) -> [FieldCheck; 5] {
+        [
             (
                 "layer_height_m",
                 self.layer_height_m,
@@ -65,11 +66,7 @@ impl HeightConfig {
             ),
             ("up_offset_m", self.up_offset_m, true),
             ("down_offset_m", self.down_offset_m, true),
-        ];
-        checks
-            .into_iter()
-            .find(|(_, value, ok)| !(*ok && value.is_finite()))
-            .map(|(field, value, _)| (field, value))
+        ]
     }
 }
 
