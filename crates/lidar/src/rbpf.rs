@@ -39,6 +39,7 @@ use crate::particles::{
 use crate::point_map::Keyframe;
 use crate::LidarError;
 use hit_means::HitMeans;
+use nalgebra::Point2;
 use proposal::{propose, GridScorer, PreparedScan, ProposalConfig};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -137,13 +138,7 @@ impl RbpfConfig {
                 "a motion noise value is out of range",
             ));
         }
-        if !self.relocalisation.is_valid() {
-            return Err(LidarError::invalid_config(
-                "relocalisation",
-                f64::NAN,
-                "a relocalisation value is out of range",
-            ));
-        }
+        self.relocalisation.validate()?;
         self.scan_odometry.icp.validate()?;
         if self.particles == 0 || self.particles > 100_000 {
             return Err(LidarError::invalid_config(
@@ -183,8 +178,9 @@ impl RbpfConfig {
 struct Node {
     scan: usize,
     world_from_base: Pose2,
-    /// The update's scan points (base frame), shared by every particle's node of the update.
-    cloud: Arc<Keyframe>,
+    /// The update's scan points (base frame), shared by every particle's node of the update;
+    /// `None` when relocalisation, their only reader, is off.
+    cloud: Option<Arc<Keyframe>>,
     parent: Option<Arc<Node>>,
 }
 
@@ -344,7 +340,7 @@ impl Rbpf {
         let node = Arc::new(Node {
             scan: index,
             world_from_base: Pose2::identity(),
-            cloud: Arc::new(self.keep(scan)),
+            cloud: self.keep(self.search_points(scan).as_deref()),
             parent: None,
         });
         let particle = Particle {
@@ -369,9 +365,12 @@ impl Rbpf {
     ) {
         self.stats.updates += 1;
         let started = Instant::now();
-        self.relocalise(scan, increment);
+        let points = self.search_points(scan);
+        if let Some(points) = &points {
+            self.relocalise(points, increment);
+        }
         let relocalised = Instant::now();
-        let cloud = Arc::new(self.keep(scan));
+        let cloud = self.keep(points.as_deref());
         let config = &self.config;
         for particle in &mut self.particles {
             let scorer = GridScorer::new(&particle.grid, particle.means.as_ref(), &config.proposal);
@@ -417,22 +416,29 @@ impl Rbpf {
         }
     }
 
-    /// The scan's points as kept with the update's nodes.
-    fn keep(&self, scan: &LaserScan) -> Keyframe {
+    /// The scan's points (base frame) within the relocalisation search's range, computed once
+    /// per update for both the search and the kept cloud; `None` when relocalisation is off.
+    fn search_points(&self, scan: &LaserScan) -> Option<Vec<Point2<f64>>> {
         let c = &self.config;
-        let points = scan_points(scan, c.min_range_m, c.relocalisation.search.max_range_m);
-        c.relocalisation.keep(&points)
+        c.relocalisation
+            .enabled
+            .then(|| scan_points(scan, c.min_range_m, c.relocalisation.search.max_range_m))
     }
 
-    /// Every few updates, moves each particle that finds the scan in its own past to the
-    /// matched pose (less the odometry `increment`, which the proposal adds back).
-    fn relocalise(&mut self, scan: &LaserScan, increment: &Pose2) {
+    /// The search points as kept with the update's nodes (thinned, with normals).
+    fn keep(&self, points: Option<&[Point2<f64>]>) -> Option<Arc<Keyframe>> {
+        points.map(|p| Arc::new(self.config.relocalisation.keep(p)))
+    }
+
+    /// Every few updates, moves each particle that finds the scan (its search `points`) in its
+    /// own past to the matched pose (less the odometry `increment`, which the proposal adds
+    /// back).
+    fn relocalise(&mut self, points: &[Point2<f64>], increment: &Pose2) {
         let c = &self.config.relocalisation;
-        if !c.enabled || self.stats.updates % c.every_updates.max(1) != 0 {
+        if self.stats.updates % c.every_updates.max(1) != 0 {
             return;
         }
-        let points = scan_points(scan, self.config.min_range_m, c.search.max_range_m);
-        let source = SearchSource::new(&points, &c.search);
+        let source = SearchSource::new(points, &c.search);
         for particle in &mut self.particles {
             if !self.rng.gen_bool(c.fraction) {
                 continue;

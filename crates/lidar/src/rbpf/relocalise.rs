@@ -23,11 +23,13 @@
 
 use super::Node;
 use crate::cloud::{estimate_normals, voxel_downsample};
+use crate::error::check_fields;
 use crate::icp_slam::loop_closure::{
     candidate_reach, match_submap, search_window, LoopClosureConfig, SearchSource,
 };
 use crate::nn::NearestNeighbours;
 use crate::point_map::{index_keyframes, Keyframe};
+use crate::LidarError;
 use nalgebra::Point2;
 use serde::{Deserialize, Serialize};
 use slamkit_core::Pose2;
@@ -90,17 +92,33 @@ impl Default for RelocalisationConfig {
 }
 
 impl RelocalisationConfig {
-    /// True when every value is in range.
-    pub fn is_valid(&self) -> bool {
-        self.every_updates >= 1
-            && (0.0..=1.0).contains(&self.fraction)
-            && self.keep_voxel_m.is_finite()
-            && self.keep_voxel_m >= 0.0
-            && self.normal_radius_m.is_finite()
-            && self.normal_radius_m > 0.0
-            && self.normal_max_flatness.is_finite()
-            && self.normal_max_flatness > 0.0
-            && self.search.validate().is_ok()
+    /// Checks every field's range (the search's too), naming the first field out of range.
+    pub fn validate(&self) -> Result<(), LidarError> {
+        self.search.validate()?;
+        let checks = [
+            (
+                "every_updates",
+                self.every_updates as f64,
+                self.every_updates >= 1,
+            ),
+            (
+                "fraction",
+                self.fraction,
+                (0.0..=1.0).contains(&self.fraction),
+            ),
+            ("keep_voxel_m", self.keep_voxel_m, self.keep_voxel_m >= 0.0),
+            (
+                "normal_radius_m",
+                self.normal_radius_m,
+                self.normal_radius_m > 0.0,
+            ),
+            (
+                "normal_max_flatness",
+                self.normal_max_flatness,
+                self.normal_max_flatness > 0.0,
+            ),
+        ];
+        check_fields(checks, "out of range")
     }
 
     /// The points (base frame) of a scan as kept with its nodes: thinned, with normals.
@@ -164,10 +182,12 @@ pub(super) fn relocalise(
         let keyframes: Vec<Keyframe> = chain
             .get(first..last)?
             .iter()
-            .map(|(n, _)| Keyframe {
-                world_from_base: n.world_from_base,
-                points: n.cloud.points.clone(),
-                normals: n.cloud.normals.clone(),
+            .filter_map(|(n, _)| {
+                n.cloud.as_ref().map(|cloud| Keyframe {
+                    world_from_base: n.world_from_base,
+                    points: cloud.points.clone(),
+                    normals: cloud.normals.clone(),
+                })
             })
             .collect();
         let submap = index_keyframes(&keyframes, search.correlative.resolution_m);
@@ -248,7 +268,7 @@ mod tests {
             node = Some(Arc::new(Node {
                 scan: i,
                 world_from_base: *pose,
-                cloud: Arc::new(cloud),
+                cloud: Some(Arc::new(cloud)),
                 parent: node.take(),
             }));
         }

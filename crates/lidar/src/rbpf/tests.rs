@@ -219,6 +219,21 @@ fn invalid_config_is_rejected() {
             Err(LidarError::InvalidConfig { .. })
         ));
     }
+    // A relocalisation value out of range is reported by its field name.
+    let bad = RbpfConfig {
+        relocalisation: RelocalisationConfig {
+            every_updates: 0,
+            ..RelocalisationConfig::default()
+        },
+        ..RbpfConfig::default()
+    };
+    assert!(matches!(
+        Rbpf::new(bad),
+        Err(LidarError::InvalidConfig {
+            field: "every_updates",
+            ..
+        })
+    ));
 }
 
 /// A scan of a straight wall 2.01 m ahead, 1 cm off the centre line of its 5 cm cells.
