@@ -40,6 +40,7 @@ use slamkit_core::pose::pose2_to_pose3;
 use slamkit_core::{LaserScan, Pose2, StageTimings, Trajectory};
 use slamkit_map::{LikelihoodField, LikelihoodFieldConfig, Occupancy, OccupancyGrid};
 use std::f64::consts::PI;
+use std::sync::Arc;
 use std::time::Instant;
 
 /// Monte Carlo localisation parameters.
@@ -257,12 +258,61 @@ pub struct MclStats {
     pub wheel_odometry: bool,
 }
 
-/// Monte Carlo localisation over one map.
-pub struct Mcl {
-    config: MclConfig,
+/// A map prepared for Monte Carlo localisation: the likelihood field of its obstacles and the
+/// centres of its free cells, where a global initialisation draws its particles. Built once and
+/// shared ([`Arc`]) by the filters that localise in it.
+pub struct MclMap {
     field: LikelihoodField,
     free_cells: Vec<Point2<f64>>,
     resolution_m: f64,
+}
+
+impl MclMap {
+    /// Prepares `map` for the sensor model `likelihood`. Fails when the model is refused or
+    /// the map has no free cell.
+    pub fn new(
+        map: &OccupancyGrid,
+        likelihood: &LikelihoodFieldConfig,
+    ) -> Result<Self, LidarError> {
+        let field =
+            LikelihoodField::new(map, likelihood).map_err(|e| LidarError::InvalidConfig {
+                field: "likelihood",
+                value: e.to_string(),
+                reason: "the likelihood field refused it",
+            })?;
+        let free_cells = free_cell_centres(map);
+        if free_cells.is_empty() {
+            return Err(LidarError::TooFewPoints { got: 0, min: 1 });
+        }
+        Ok(Self {
+            field,
+            free_cells,
+            resolution_m: map.resolution_m(),
+        })
+    }
+
+    /// An error unless the map was prepared for the sensor model `likelihood`.
+    fn check_sensor_model(&self, likelihood: &LikelihoodFieldConfig) -> Result<(), LidarError> {
+        if self.field.config() == likelihood {
+            return Ok(());
+        }
+        Err(LidarError::InvalidConfig {
+            field: "likelihood",
+            value: format!("{likelihood:?}"),
+            reason: "the map was prepared with another sensor model",
+        })
+    }
+
+    /// Area of the free cells \[m²\].
+    pub fn free_area_m2(&self) -> f64 {
+        self.free_cells.len() as f64 * self.resolution_m * self.resolution_m
+    }
+}
+
+/// Monte Carlo localisation over one map.
+pub struct Mcl {
+    config: MclConfig,
+    map: Arc<MclMap>,
     poses: Vec<Pose2>,
     log_weights: Vec<f64>,
     rng: ChaCha8Rng,
@@ -276,44 +326,53 @@ impl Mcl {
     /// A filter over `map`, globally initialised.
     pub fn new(map: &OccupancyGrid, config: MclConfig) -> Result<Self, LidarError> {
         config.validate()?;
-        let field = LikelihoodField::new(map, &config.likelihood).map_err(|e| {
-            LidarError::InvalidConfig {
-                field: "likelihood",
-                value: e.to_string(),
-                reason: "the likelihood field refused it",
-            }
-        })?;
-        let free_cells = free_cell_centres(map);
-        if free_cells.is_empty() {
-            return Err(LidarError::TooFewPoints { got: 0, min: 1 });
-        }
-        let res = map.resolution_m();
-        let free_area_m2 = free_cells.len() as f64 * res * res;
-        let global = global_particle_count(
-            free_area_m2,
-            config.capture_radius_m,
-            config.heading_window_deg,
-        )
-        .min(config.max_particles);
+        let map = MclMap::new(map, &config.likelihood)?;
+        Self::on_map(Arc::new(map), config)
+    }
+
+    /// A filter over a prepared map, globally initialised. Fails when `config` is out of
+    /// range or `map` was prepared with another sensor model than `config.likelihood`.
+    pub fn on_map(map: Arc<MclMap>, config: MclConfig) -> Result<Self, LidarError> {
+        config.validate()?;
+        map.check_sensor_model(&config.likelihood)?;
         let mut mcl = Self {
             rng: ChaCha8Rng::seed_from_u64(config.seed),
             config,
-            field,
-            free_cells,
-            resolution_m: res,
+            map,
             poses: Vec::new(),
             log_weights: Vec::new(),
             w_slow: None,
             w_fast: None,
             estimate: None,
-            stats: MclStats {
-                free_area_m2,
-                global_particles: global,
-                ..MclStats::default()
-            },
+            stats: MclStats::default(),
         };
+        mcl.count_global_particles();
         mcl.initialise_globally();
         Ok(mcl)
+    }
+
+    /// Sets the free area and the global particle count from the current map.
+    fn count_global_particles(&mut self) {
+        let free_area_m2 = self.map.free_area_m2();
+        self.stats.free_area_m2 = free_area_m2;
+        self.stats.global_particles = global_particle_count(
+            free_area_m2,
+            self.config.capture_radius_m,
+            self.config.heading_window_deg,
+        )
+        .min(self.config.max_particles);
+    }
+
+    /// Carries the particles, their weights and the likelihood averages over to `map` (in the
+    /// same frame): the next updates weigh them against it, and a restart spreads them over
+    /// its free space. The multi-layer localiser moves a layer hypothesis's particles so when
+    /// the drone changes height layer. Fails, leaving the filter unchanged, when `map` was
+    /// prepared with another sensor model.
+    pub fn move_to_map(&mut self, map: Arc<MclMap>) -> Result<(), LidarError> {
+        map.check_sensor_model(&self.config.likelihood)?;
+        self.map = map;
+        self.count_global_particles();
+        Ok(())
     }
 
     /// Spreads the global number of particles uniformly over the free space.
@@ -327,13 +386,14 @@ impl Mcl {
 
     /// A pose uniform over the free cells and all headings.
     fn random_pose(&mut self) -> Pose2 {
-        let i = self.rng.gen_range(0..self.free_cells.len());
-        let half = self.resolution_m / 2.0;
+        let i = self.rng.gen_range(0..self.map.free_cells.len());
+        let half = self.map.resolution_m / 2.0;
         let offset = Vector2::new(
             self.rng.gen_range(-half..half),
             self.rng.gen_range(-half..half),
         );
         let c = self
+            .map
             .free_cells
             .get(i)
             .copied()
@@ -360,7 +420,7 @@ impl Mcl {
         let gain = self.config.likelihood_gain;
         let mut mean_beam_likelihood = 0.0;
         for (pose, w) in self.poses.iter().zip(&mut self.log_weights) {
-            let l = self.field.score_points(&points, pose);
+            let l = self.map.field.score_points(&points, pose);
             mean_beam_likelihood += (l / points.len() as f64).exp();
             *w += l / gain;
         }
@@ -442,20 +502,7 @@ impl Mcl {
             }
         }
         let mean = if sum_w > 0.0 { xy / sum_w } else { centre };
-        let all_mean = self
-            .poses
-            .iter()
-            .zip(weights)
-            .fold(Vector2::zeros(), |acc, (p, w)| {
-                acc + p.translation.vector * *w
-            });
-        let spread_m = self
-            .poses
-            .iter()
-            .zip(weights)
-            .map(|(p, w)| w * (p.translation.vector - all_mean).norm_squared())
-            .sum::<f64>()
-            .sqrt();
+        let spread_m = weighted_spread_m(&self.poses, weights);
         MclEstimate {
             world_from_base: Pose2::new(mean, cs.y.atan2(cs.x)),
             spread_m,
@@ -472,6 +519,13 @@ impl Mcl {
         usable.into_iter().step_by(stride).collect()
     }
 
+    /// RMS distance of the particles as they are now to their weighted mean \[m\]: after a
+    /// resampling (uniform weights) the spread of the resampled cloud, unlike
+    /// [`MclEstimate::spread_m`], which is taken before it.
+    pub fn spread_m(&self) -> f64 {
+        weighted_spread_m(&self.poses, &normalized_weights(&self.log_weights))
+    }
+
     /// The latest estimate, once an update has run.
     pub fn estimate(&self) -> Option<MclEstimate> {
         self.estimate
@@ -486,6 +540,22 @@ impl Mcl {
     pub fn stats(&self) -> &MclStats {
         &self.stats
     }
+}
+
+/// RMS distance of `poses` to their mean, both weighted by the normalised `weights` \[m\].
+fn weighted_spread_m(poses: &[Pose2], weights: &[f64]) -> f64 {
+    let mean = poses
+        .iter()
+        .zip(weights)
+        .fold(Vector2::zeros(), |acc, (p, w)| {
+            acc + p.translation.vector * *w
+        });
+    poses
+        .iter()
+        .zip(weights)
+        .map(|(p, w)| w * (p.translation.vector - mean).norm_squared())
+        .sum::<f64>()
+        .sqrt()
 }
 
 /// Centres of the grid's free cells.

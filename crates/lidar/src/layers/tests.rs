@@ -1,5 +1,4 @@
 use super::height::{HeightConfig, HeightTracker};
-use super::layer_pf::{candidate_layers, LayerLocaliser};
 use super::*;
 use crate::sim_scan::SegmentWorld;
 use nalgebra::Vector2;
@@ -171,99 +170,6 @@ fn bad_config_is_an_error() {
         config.relocalise.min_gain = bad;
         assert!(LayeredIcpSlam::new(config).is_err());
     }
-}
-
-/// An occupancy grid of `world` from scans at the poses `(x, y, yaw)`.
-fn grid_of(world: &SegmentWorld, poses: &[(f64, f64, f64)]) -> slamkit_map::OccupancyGrid {
-    let mut grid =
-        slamkit_map::OccupancyGrid::new(slamkit_map::OccupancyGridConfig::default()).unwrap();
-    for &(x, y, yaw) in poses {
-        let pose = Pose2::new(Vector2::new(x, y), yaw);
-        let scan = world.scan(&pose, 360, 1.5 * std::f64::consts::PI, 8.0);
-        grid.insert_scan(&scan, &pose).unwrap();
-    }
-    grid
-}
-
-#[test]
-fn range_readings_bound_the_candidate_layers() {
-    let h = HeightConfig::default();
-    // over a 0.2 m crate (down 0.1 m), 1 m under a 2 m ceiling: heights 0.13 to 0.97 m
-    let layers = candidate_layers([2, 6, 12, 19, 20, 30], Some(1.0), Some(0.1), 2.0, &h);
-    assert_eq!(layers, vec![2, 6, 12, 19]);
-    // no up reading: no upper bound; a NaN down reading: no lower bound
-    assert_eq!(
-        candidate_layers([2, 30], None, Some(0.1), 2.0, &h),
-        vec![2, 30]
-    );
-    assert_eq!(
-        candidate_layers([2, 30], Some(1.0), Some(f64::NAN), 2.0, &h),
-        vec![2]
-    );
-}
-
-#[test]
-fn the_particle_filter_picks_the_layer_whose_particles_gather() {
-    // layer 6 (0.30 m) holds the room with its boxes and a crate; layers 12 and 30 a 40 m long,
-    // 2 m wide corridor (partitions higher up): a scan of the low layer fits the low map at one
-    // pose, the corridor nowhere well, and anywhere along it equally badly
-    let (low, _) = worlds();
-    let room_poses = [
-        (-4.0, -2.0, 0.0),
-        (0.0, -2.5, 1.0),
-        (4.0, -2.0, 2.0),
-        (4.0, 2.5, 3.0),
-        (0.0, 2.5, -2.5),
-        (-4.0, 2.0, -1.0),
-        (-4.5, 0.0, 0.5),
-        (2.5, 0.8, -0.5),
-    ];
-    let corridor = SegmentWorld::polygon(&[(-20.0, -1.0), (20.0, -1.0), (20.0, 1.0), (-20.0, 1.0)]);
-    let corridor_poses: Vec<(f64, f64, f64)> = (-3..=3)
-        .flat_map(|k| {
-            [
-                (5.0 * f64::from(k), 0.0, 0.0),
-                (5.0 * f64::from(k), 0.0, 3.1),
-            ]
-        })
-        .collect();
-    let maps: BTreeMap<i64, _> = [
-        (6, grid_of(&low, &room_poses)),
-        (12, grid_of(&corridor, &corridor_poses)),
-        (30, grid_of(&corridor, &corridor_poses)),
-    ]
-    .into_iter()
-    .collect();
-    // down 0.1 m over a crate, up 1.0 m under a 2 m ceiling: layers 6 and 12, not 30
-    let h = HeightConfig::default();
-    let candidates = candidate_layers(maps.keys().copied(), Some(1.0), Some(0.1), 2.0, &h);
-    assert_eq!(candidates, vec![6, 12]);
-    let config = crate::mcl::MclConfig {
-        seed: 3,
-        ..crate::mcl::MclConfig::default()
-    };
-    let mut localiser = LayerLocaliser::new(&maps, &candidates, &config).unwrap();
-    let path: Vec<Pose2> = (0..60)
-        .map(|k| {
-            let s = f64::from(k) * 0.08;
-            Pose2::new(Vector2::new(-4.0 + s, -1.5 + 0.3 * s.sin()), 0.1 * s)
-        })
-        .collect();
-    let mut previous = path[0];
-    for pose in &path {
-        let scan = low.scan(pose, 360, 1.5 * std::f64::consts::PI, 8.0);
-        localiser.update(&(previous.inverse() * pose), &scan);
-        previous = *pose;
-    }
-    let (layer, estimate) = localiser.best().unwrap();
-    let spreads: Vec<f64> = localiser.estimates().values().map(|e| e.spread_m).collect();
-    assert_eq!(layer, 6, "spreads {spreads:?}");
-    let error = (estimate.world_from_base.translation.vector - previous.translation.vector).norm();
-    assert!(error < 0.2, "error {error} m, spreads {spreads:?}");
-    // the corridor filter stays three times as spread (0.17 against 0.057 m)
-    assert!(spreads[1] > 2.0 * spreads[0], "spreads {spreads:?}");
-    // no candidate with a map is an error, not a panic
-    assert!(LayerLocaliser::new(&maps, &[7], &config).is_err());
 }
 
 /// Heading error at the end of a turn in place beside a lone pillar, whose scans do not pin the

@@ -1,6 +1,7 @@
 use super::*;
 use crate::rbpf::tests::{room_loop, simulate};
 use slamkit_map::OccupancyGridConfig;
+use std::sync::Arc;
 
 /// The simulated room mapped from scans at the true poses of the room loop.
 fn room_map() -> OccupancyGrid {
@@ -92,4 +93,90 @@ fn empty_map_is_an_error_not_a_panic() {
         Mcl::new(&room_map(), bad),
         Err(LidarError::InvalidConfig { .. })
     ));
+}
+
+/// The simulated room mapped from scans at the true poses of the room loop moved by `shift`.
+fn shifted_room_map(shift: Vector2<f64>) -> OccupancyGrid {
+    let truth = room_loop();
+    let (scans, _) = simulate(&truth);
+    let mut grid = OccupancyGrid::new(OccupancyGridConfig::default()).unwrap();
+    for (scan, pose) in scans.iter().zip(&truth) {
+        let moved = Pose2::new(pose.translation.vector + shift, pose.rotation.angle());
+        grid.insert_scan(scan, &moved).unwrap();
+    }
+    grid
+}
+
+#[test]
+fn particles_moved_to_another_map_are_weighed_against_it() {
+    let config = MclConfig::default();
+    let shift = Vector2::new(0.3, 0.0);
+    let here = Arc::new(MclMap::new(&room_map(), &config.likelihood).unwrap());
+    let there = Arc::new(MclMap::new(&shifted_room_map(shift), &config.likelihood).unwrap());
+    let truth: Vec<Pose2> = room_loop().into_iter().skip(30).take(160).collect();
+    let (scans, odometry) = simulate(&truth);
+    let mut moved = Mcl::on_map(Arc::clone(&here), config.clone()).unwrap();
+    let mut stayed = Mcl::on_map(here, config.clone()).unwrap();
+    for (k, (scan, step)) in scans.iter().zip(odometry.windows(2)).enumerate() {
+        if k == 60 {
+            // the filter has converged in the first map: same particles after the move
+            let before = moved.particles().to_vec();
+            moved.move_to_map(Arc::clone(&there)).unwrap();
+            assert_eq!(moved.particles(), &before[..]);
+        }
+        for mcl in [&mut moved, &mut stayed] {
+            mcl.predict(&(step[0].inverse() * step[1]));
+            mcl.correct(scan);
+        }
+    }
+    // the last scans fit the second map 0.3 m further along x
+    let end = truth.last().unwrap().translation.vector;
+    let offset = |mcl: &Mcl| mcl.estimate().unwrap().world_from_base.translation.vector - end;
+    let (m, s) = (offset(&moved), offset(&stayed));
+    assert!((m - shift).norm() < 0.1, "moved: offset {m:?}");
+    assert!(s.norm() < 0.1, "stayed: offset {s:?}");
+    // a map prepared for another sensor model is refused
+    let other = MclConfig {
+        likelihood: LikelihoodFieldConfig {
+            sigma_hit_m: 0.1,
+            ..config.likelihood.clone()
+        },
+        ..config.clone()
+    };
+    let foreign = Arc::new(MclMap::new(&room_map(), &other.likelihood).unwrap());
+    assert!(moved.move_to_map(Arc::clone(&foreign)).is_err());
+    assert!(Mcl::on_map(foreign, config).is_err());
+}
+
+#[test]
+fn spread_after_resampling_is_that_of_the_resampled_cloud() {
+    let map = room_map();
+    let truth: Vec<Pose2> = room_loop().into_iter().skip(30).take(3).collect();
+    let (scans, _) = simulate(&truth);
+    let mut mcl = Mcl::new(&map, MclConfig::default()).unwrap();
+    // uniform over the free space before any update: the RMS distance to the mean of a
+    // uniform 12 × 8 m rectangle is √((12² + 8²) / 12) = 4.16 m; the room's alcove and boxes
+    // make it 4.0–4.6 m
+    let global = mcl.spread_m();
+    assert!((4.0..4.6).contains(&global), "{global}");
+    let estimate = mcl.correct(&scans[0]).unwrap();
+    assert_eq!(mcl.stats().resamples, 1);
+    // after resampling the weights are uniform: the cloud's own spread
+    let p = mcl.particles();
+    let mean = p
+        .iter()
+        .fold(Vector2::zeros(), |a, q| a + q.translation.vector)
+        / p.len() as f64;
+    let rms = (p
+        .iter()
+        .map(|q| (q.translation.vector - mean).norm_squared())
+        .sum::<f64>()
+        / p.len() as f64)
+        .sqrt();
+    assert!(
+        (mcl.spread_m() - rms).abs() < 1e-9,
+        "{} {rms}",
+        mcl.spread_m()
+    );
+    assert!(estimate.spread_m.is_finite());
 }

@@ -4,16 +4,19 @@
 //! flight, the up and down range readings give the candidate layers; one Monte Carlo
 //! localiser per candidate (Dellaert et al., ICRA 1999), globally initialised over that
 //! layer's map, then takes the following scans with the layered estimate's pose increments as
-//! its motion. The layer whose particles spread least is chosen and compared with the true
-//! layer (true height over layer height), and its position with the ground truth.
+//! its motion and the height tracker's layer changes as its climbs and descents. The
+//! hypothesis whose particles spread least is chosen; its start layer is compared with the
+//! true layer (true height over layer height) at the start, its layer at the end with the true
+//! one then, and its position with the ground truth.
 
 use super::latest_reading;
 use nalgebra::Vector2;
 use serde_json::json;
 use slamkit_core::Pose2;
-use slamkit_lidar::layers::layer_pf::{candidate_layers, LayerLocaliser};
+use slamkit_lidar::layers::layer_pf::{
+    candidate_layers, LayerHypothesis, LayerLocaliser, LayerPfConfig, LayerPfError,
+};
 use slamkit_lidar::layers::{LayerScanStatus, LayeredEstimate, LayeredSlamConfig};
-use slamkit_lidar::mcl::MclConfig;
 use slamkit_lidar::particles::moved_enough;
 use slamkit_map::OccupancyGrid;
 use slamkit_sim::LidarRun;
@@ -25,7 +28,7 @@ const START_FRACTION: f64 = 0.6;
 const WINDOW_SCANS: usize = 200;
 /// The position error is also reported after this many scans.
 const EARLY_SCANS: usize = 50;
-/// The best layer counts as converged once its particles' spread is below this \[m\].
+/// The best hypothesis counts as converged once its particles' spread is below this \[m\].
 const CONVERGED_SPREAD_M: f64 = 0.3;
 
 /// What the re-localisation found.
@@ -34,19 +37,21 @@ pub struct LayerLocalisation {
     pub start_scan: usize,
     /// Candidate layers from the start scan's range readings (those with a map).
     pub candidates: Vec<i64>,
-    /// Layer whose particles spread least at the end of the window.
-    pub chosen_layer: Option<i64>,
+    /// Hypotheses still followed at the end of the window, with their horizontal errors \[m\].
+    pub hypotheses: Vec<(LayerHypothesis, Option<f64>)>,
+    /// The hypothesis whose particles spread least at the end of the window.
+    pub chosen: Option<LayerHypothesis>,
     /// Layer of the true height at the start scan (the one the candidates are for).
     pub true_layer: i64,
     /// Layer of the true height at the last update.
     pub true_layer_end: i64,
     /// Filter updates run in the window.
     pub updates: usize,
-    /// Scans until the best layer's spread first fell below [`CONVERGED_SPREAD_M`].
+    /// Scans until the best hypothesis's spread first fell below [`CONVERGED_SPREAD_M`].
     pub converged_after_scans: Option<usize>,
-    /// Horizontal error of the best layer's position after [`EARLY_SCANS`] scans \[m\].
+    /// Horizontal error of the best hypothesis's position after [`EARLY_SCANS`] scans \[m\].
     pub error_early_m: Option<f64>,
-    /// Horizontal error of the best layer's position at the end of the window \[m\].
+    /// Horizontal error of the best hypothesis's position at the end of the window \[m\].
     pub error_end_m: Option<f64>,
     /// Scans from the start to the last update.
     pub scans: usize,
@@ -54,6 +59,16 @@ pub struct LayerLocalisation {
     pub particles: Vec<usize>,
     /// Wall time of the localisers \[s\].
     pub seconds: f64,
+}
+
+/// Why the re-localisation did not run.
+pub enum NotRun {
+    /// No scan after the start share is matched in a layer that has a map.
+    NoStartScan,
+    /// The start scan's readings allow no layer with a map.
+    NoMappedCandidate(Vec<i64>),
+    /// The localiser refused a map or its settings.
+    Failed(LayerPfError),
 }
 
 /// The true layer of scan `i`.
@@ -69,27 +84,35 @@ fn error_m(run: &LidarRun, i: usize, estimate: &Pose2) -> Option<f64> {
     Some((position - truth).norm())
 }
 
-/// Runs the re-localisation on `maps` (the layer grids in the simulator's frame). `None` when
-/// no scan after the start share is in a mapped layer, or its readings allow no mapped layer.
+/// The localiser's settings: the published defaults with the demo's seed.
+fn config(seed: u64) -> LayerPfConfig {
+    let mut config = LayerPfConfig::default();
+    config.mcl.seed = seed;
+    config
+}
+
+/// Runs the re-localisation on `maps` (the layer grids in the simulator's frame).
 pub fn relocalise(
     run: &LidarRun,
     estimates: &[LayeredEstimate],
     maps: &BTreeMap<i64, OccupancyGrid>,
     ceiling_m: f64,
     seed: u64,
-) -> Option<LayerLocalisation> {
+) -> Result<LayerLocalisation, NotRun> {
     let started = std::time::Instant::now();
     let height = LayeredSlamConfig::default().height;
     let h = height.layer_height_m;
     let first = (run.scans.len() as f64 * START_FRACTION) as usize;
-    let start = (first..run.scans.len()).find(|&i| {
-        true_layer(run, i, h).is_some_and(|k| maps.contains_key(&k))
-            && estimates
-                .get(i)
-                .is_some_and(|e| matches!(e.status, LayerScanStatus::Slam(_)))
-    })?;
-    let scan = run.scans.get(start)?;
-    let start_estimate = estimates.get(start)?;
+    let start = (first..run.scans.len())
+        .find(|&i| {
+            true_layer(run, i, h).is_some_and(|k| maps.contains_key(&k))
+                && estimates.get(i).is_some_and(|e| {
+                    e.layer.is_some() && matches!(e.status, LayerScanStatus::Slam(_))
+                })
+        })
+        .ok_or(NotRun::NoStartScan)?;
+    let scan = run.scans.get(start).ok_or(NotRun::NoStartScan)?;
+    let start_estimate = estimates.get(start).ok_or(NotRun::NoStartScan)?;
     let range = latest_reading(&run.ranges, scan.timestamp);
     let candidates = candidate_layers(
         maps.keys().copied(),
@@ -98,19 +121,19 @@ pub fn relocalise(
         ceiling_m,
         &height,
     );
-    let config = MclConfig {
-        seed,
-        ..MclConfig::default()
+    let config = config(seed);
+    let mut localiser = match LayerLocaliser::new(maps, &candidates, &config) {
+        Ok(l) => l,
+        Err(LayerPfError::NoMappedCandidate { candidates }) => {
+            return Err(NotRun::NoMappedCandidate(candidates))
+        }
+        Err(e) => return Err(NotRun::Failed(e)),
     };
-    // no candidate with a map (readings far off, e.g. over an unmapped stack): nothing to run
-    let Ok(mut localiser) = LayerLocaliser::new(maps, &candidates, &config) else {
-        return None;
-    };
-    let mut previous = start_estimate.smooth_world_from_base;
     let mut found = LayerLocalisation {
         start_scan: start,
         candidates,
-        chosen_layer: None,
+        hypotheses: Vec::new(),
+        chosen: None,
         true_layer: true_layer(run, start, h).unwrap_or_default(),
         true_layer_end: 0,
         updates: 0,
@@ -121,58 +144,86 @@ pub fn relocalise(
         particles: localiser.global_particles(),
         seconds: 0.0,
     };
+    let mut previous = (
+        start_estimate.smooth_world_from_base,
+        start_estimate.layer.unwrap_or_default(),
+    );
     let end = (start + WINDOW_SCANS).min(run.scans.len());
     for i in start..end {
         let (Some(scan), Some(e)) = (run.scans.get(i), estimates.get(i)) else {
             break;
         };
-        let increment = previous.inverse() * e.smooth_world_from_base;
+        let increment = previous.0.inverse() * e.smooth_world_from_base;
         // as `run_mcl`: an update once the drone moved or turned enough (updating on every
         // scan of a hover counts the same view again and again); tilted scans cut the room at
         // a slant and are skipped, as layered ICP-SLAM skips them
         let due = i == start
             || moved_enough(
                 &increment,
-                config.update_linear_m,
-                config.update_angular_rad,
+                config.mcl.update_linear_m,
+                config.mcl.update_angular_rad,
             );
-        if !due || !matches!(e.status, LayerScanStatus::Slam(_)) {
+        let (Some(layer), true) = (e.layer, matches!(e.status, LayerScanStatus::Slam(_))) else {
+            continue;
+        };
+        if !due {
             continue;
         }
-        localiser.update(&increment, scan);
-        previous = e.smooth_world_from_base;
+        localiser.update(&increment, layer - previous.1, scan);
+        previous = (e.smooth_world_from_base, layer);
         found.updates += 1;
-        let Some((layer, best)) = localiser.best() else {
+        let Some(best) = localiser.best() else {
             continue;
         };
         let scans = i + 1 - start;
         if found.converged_after_scans.is_none() && best.spread_m < CONVERGED_SPREAD_M {
             found.converged_after_scans = Some(scans);
         }
-        let error = error_m(run, i, &best.world_from_base);
+        let error = error_m(run, i, &best.estimate.world_from_base);
         if found.error_early_m.is_none() && scans >= EARLY_SCANS {
             found.error_early_m = error;
         }
-        found.chosen_layer = Some(layer);
+        found.chosen = Some(best);
         found.error_end_m = error;
         found.scans = scans;
         found.true_layer_end = true_layer(run, i, h).unwrap_or_default();
+        found.hypotheses = localiser
+            .hypotheses()
+            .into_iter()
+            .map(|hyp| (hyp, error_m(run, i, &hyp.estimate.world_from_base)))
+            .collect();
     }
     found.seconds = started.elapsed().as_secs_f64();
-    Some(found)
+    Ok(found)
 }
 
 /// `metrics.layer_localisation` of `report.json`.
-pub fn metrics_json(found: Option<&LayerLocalisation>) -> serde_json::Value {
-    let Some(f) = found else {
-        return serde_json::Value::Null;
+pub fn metrics_json(found: Result<&LayerLocalisation, &NotRun>) -> serde_json::Value {
+    let f = match found {
+        Ok(f) => f,
+        Err(NotRun::Failed(e)) => return json!({ "error": e.to_string() }),
+        Err(why) => return json!({ "not_run": reason(why) }),
     };
+    let hypotheses: Vec<_> = f
+        .hypotheses
+        .iter()
+        .map(|(hyp, error)| {
+            json!({
+                "start_layer": hyp.start_layer,
+                "layer": hyp.layer,
+                "spread_m": hyp.spread_m,
+                "particles": hyp.estimate.particles,
+                "position_error_m": error,
+            })
+        })
+        .collect();
     json!({
         "start_scan": f.start_scan,
         "scans": f.scans,
         "candidates": f.candidates,
         "particles_per_candidate": f.particles,
-        "chosen_layer": f.chosen_layer,
+        "chosen_layer": f.chosen.map(|c| c.start_layer),
+        "chosen_layer_end": f.chosen.map(|c| c.layer),
         "true_layer": f.true_layer,
         "true_layer_end": f.true_layer_end,
         "updates": f.updates,
@@ -181,22 +232,36 @@ pub fn metrics_json(found: Option<&LayerLocalisation>) -> serde_json::Value {
             format!("after_{EARLY_SCANS}_scans"): f.error_early_m,
             "end": f.error_end_m,
         },
+        "hypotheses": hypotheses,
         "seconds": f.seconds,
     })
 }
 
+/// Why it did not run, in words.
+fn reason(why: &NotRun) -> String {
+    match why {
+        NotRun::NoStartScan => "no start scan in a mapped layer".to_owned(),
+        NotRun::NoMappedCandidate(c) => format!("no candidate layer with a map ({c:?})"),
+        NotRun::Failed(e) => format!("failed: {e}"),
+    }
+}
+
 /// One line for the printed table.
-pub fn summary(found: Option<&LayerLocalisation>) -> String {
-    let Some(f) = found else {
-        return "layer choice by particles: no start scan with a mapped candidate layer".to_owned();
+pub fn summary(found: Result<&LayerLocalisation, &NotRun>) -> String {
+    let f = match found {
+        Ok(f) => f,
+        Err(why) => return format!("layer choice by particles: {}", reason(why)),
     };
     let opt = |v: Option<f64>| v.map_or("-".to_owned(), |v| format!("{v:.3} m"));
+    let layer = |v: Option<i64>| v.map_or("-".to_owned(), |k| k.to_string());
     format!(
-        "layer choice by particles: layer {} (true {}) of {} candidates, converged after {} \
-         scans, error {} after {EARLY_SCANS} scans, {} after {}",
-        f.chosen_layer.map_or("-".to_owned(), |k| k.to_string()),
+        "layer choice by particles: layer {} (true {}) of {} candidates, at the end {} (true {}), \
+         converged after {} scans, error {} after {EARLY_SCANS} scans, {} after {}",
+        layer(f.chosen.map(|c| c.start_layer)),
         f.true_layer,
         f.candidates.len(),
+        layer(f.chosen.map(|c| c.layer)),
+        f.true_layer_end,
         f.converged_after_scans
             .map_or("-".to_owned(), |n| n.to_string()),
         opt(f.error_early_m),
