@@ -288,29 +288,43 @@ fn run_layered(
     Ok((slam, estimates))
 }
 
-/// Share of GMapping's motion noise the particle filter spreads its particles by: its motion
-/// is the layered matcher's pose increments, far more precise than wheel odometry, and with
-/// the full noise its single 2D map of all layers pulled the heading off (`office` seeds 1–5,
-/// median mean error 1.25 m at 1, 0.37 m at 0.25, 0.21 m at 0.1; `large` 0.066 and 0.19 m).
-const PF_MOTION_NOISE_SCALE: f64 = 0.1;
+/// Share of GMapping's translation noise (`trans_per_*`, `min_trans_sigma_m`) the particle
+/// filter's motion model has. Its motion is the layered matcher's pose increments: their
+/// translation drifts where the scans do not pin it (up to 0.05 m per metre flown, `large`
+/// seed 2), their heading follows the gyro (see [`PF_ROTATION_NOISE_SCALE`]).
+const PF_TRANSLATION_NOISE_SCALE: f64 = 0.5;
 
-/// The particle filter's settings: the defaults with [`PF_MOTION_NOISE_SCALE`] of the motion
-/// noise.
+/// Share of GMapping's rotation noise (`rot_per_*`, `min_rot_sigma_rad`) of the particle
+/// filter's motion model: the increments' heading comes from the gyro, which drifts less than
+/// 0.1 rad over a flight.
+const PF_ROTATION_NOISE_SCALE: f64 = 0.1;
+
+/// The particle filter's settings: the defaults with [`PF_TRANSLATION_NOISE_SCALE`] and
+/// [`PF_ROTATION_NOISE_SCALE`] of the motion noise, and the scan match climbing on the scan
+/// likelihood times the motion model (`climb_with_motion_prior`): on the single 2D map of all
+/// heights a climb on the scan alone turned the particles' heading 0.1–0.2 rad off the gyro's
+/// (`office` seeds 1–5, median mean error 0.342 m with GMapping's climb and 0.1 of its noise,
+/// 0.142 m with this; BENCHMARKS.md).
 fn pf_config(seed: u64) -> RbpfConfig {
     let mut config = RbpfConfig {
         seed,
         ..RbpfConfig::default()
     };
+    config.proposal.climb_with_motion_prior = true;
     let m = &mut config.motion;
     for noise in [
         &mut m.trans_per_trans,
         &mut m.trans_per_rot,
+        &mut m.min_trans_sigma_m,
+    ] {
+        *noise *= PF_TRANSLATION_NOISE_SCALE;
+    }
+    for noise in [
         &mut m.rot_per_trans,
         &mut m.rot_per_rot,
-        &mut m.min_trans_sigma_m,
         &mut m.min_rot_sigma_rad,
     ] {
-        *noise *= PF_MOTION_NOISE_SCALE;
+        *noise *= PF_ROTATION_NOISE_SCALE;
     }
     config
 }

@@ -69,6 +69,13 @@ pub struct ProposalConfig {
     /// Measure beam ends against the mean of the end points recorded in each occupied cell
     /// (GMapping's `cell.mean()`, [`super::hit_means`]) instead of the cell centre.
     pub mean_hit_points: bool,
+    /// Hill-climb on the tempered scan log-likelihood plus the motion model's log-density
+    /// around the odometry's prediction (the target of the improved proposal, Grisetti et al.
+    /// eq. 9) instead of on the scan likelihood alone (GMapping's `optimize`, which assumes the
+    /// scan far more peaked than the odometry). For odometry more precise than the scan match
+    /// (a drone's scan-matching odometry with a gyro heading, matched against one map of many
+    /// heights) a climb on the scan alone walks off into the map's biases.
+    pub climb_with_motion_prior: bool,
 }
 
 impl Default for ProposalConfig {
@@ -88,6 +95,7 @@ impl Default for ProposalConfig {
             likelihood_gain: 3.0,
             min_match_fraction: 0.3,
             mean_hit_points: false,
+            climb_with_motion_prior: false,
         }
     }
 }
@@ -290,15 +298,23 @@ impl<'a> GridScorer<'a> {
         total
     }
 
-    /// Hill climb from `start` (GMapping's `optimize`); returns the best pose and its score.
+    /// Hill climb from `start` (GMapping's `optimize`) on the scan's log-likelihood, or, with a
+    /// `prior`, on the log-likelihood divided by `config.likelihood_gain` plus the prior's
+    /// log-density; returns the best pose and its score.
     pub fn climb(
         &self,
         scan: &PreparedScan,
         start: &Pose2,
         config: &ProposalConfig,
+        prior: Option<&MotionPrior>,
     ) -> (Pose2, Score) {
+        let objective = |pose: &Pose2, s: &Score| match prior {
+            Some(p) => s.log_likelihood / config.likelihood_gain + p.log_density(pose),
+            None => s.log_likelihood,
+        };
         let mut best = *start;
         let mut best_score = self.score(scan, &best);
+        let mut best_value = objective(&best, &best_score);
         let (mut step_m, mut step_rad) = (config.linear_step_m, config.angular_step_rad);
         for _ in 0..=config.refinements {
             // Each pass either improves the score or ends; the cap guards against plateaus.
@@ -314,8 +330,9 @@ impl<'a> GridScorer<'a> {
                 ] {
                     let candidate = shifted(&best, dx, dy, da);
                     let s = self.score(scan, &candidate);
-                    if s.log_likelihood > best_score.log_likelihood {
-                        (best, best_score, improved) = (candidate, s, true);
+                    let value = objective(&candidate, &s);
+                    if value > best_value {
+                        (best, best_score, best_value, improved) = (candidate, s, value, true);
                     }
                 }
                 if !improved {
@@ -333,6 +350,25 @@ impl<'a> GridScorer<'a> {
 fn shifted(pose: &Pose2, dx: f64, dy: f64, da: f64) -> Pose2 {
     let t = pose.translation.vector;
     Pose2::new(Vector2::new(t.x + dx, t.y + dy), pose.rotation.angle() + da)
+}
+
+/// The odometry's prediction of a particle's pose and the motion model's information
+/// (inverse covariance) about it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MotionPrior {
+    /// The particle's previous pose moved by the odometry increment.
+    pub predicted: Pose2,
+    /// Inverse covariance of the motion noise, in the frame of `predicted`.
+    pub information: Matrix3<f64>,
+}
+
+impl MotionPrior {
+    /// Log of the motion model's density at `pose`, up to a constant: `-½ eᵀ I e` for `e` the
+    /// difference of `pose` from the prediction.
+    pub fn log_density(&self, pose: &Pose2) -> f64 {
+        let e = pose_difference(&self.predicted, pose);
+        -0.5 * e.dot(&(self.information * e))
+    }
 }
 
 /// A particle's new pose and the log of its weight factor.
@@ -357,12 +393,16 @@ pub fn propose(
     config: &ProposalConfig,
     rng: &mut impl Rng,
 ) -> Proposal {
-    let predicted = previous * increment;
+    let prior = MotionPrior {
+        predicted: previous * increment,
+        information: motion.information(increment),
+    };
     // The climb starts from a draw of the motion model, as GMapping's code does (`drawFromMotion`
     // before `optimize`): where the scan constrains the pose only weakly (a corridor) particles
     // keep the motion model's spread instead of all landing on one match.
     let start = previous * motion.sample(increment, rng);
-    let (matched_pose, score) = scorer.climb(scan, &start, config);
+    let climb_prior = config.climb_with_motion_prior.then_some(&prior);
+    let (matched_pose, score) = scorer.climb(scan, &start, config, climb_prior);
     let needed = (config.min_match_fraction * scan.len() as f64).ceil() as usize;
     let gain = config.likelihood_gain;
     if score.matched < needed.max(1) {
@@ -373,7 +413,6 @@ pub fn propose(
             matched: false,
         };
     }
-    let information = motion.information(increment);
     let (sl, sa) = (config.sample_linear_m, config.sample_angular_rad);
     let mut samples: Vec<(Vector3<f64>, f64)> = Vec::with_capacity(27);
     for i in -1..=1 {
@@ -381,8 +420,7 @@ pub fn propose(
             for k in -1..=1 {
                 let (dx, dy, da) = (f64::from(i) * sl, f64::from(j) * sl, f64::from(k) * sa);
                 let pose = shifted(&matched_pose, dx, dy, da);
-                let e = pose_difference(&predicted, &pose);
-                let log_motion = -0.5 * e.dot(&(information * e));
+                let log_motion = prior.log_density(&pose);
                 let log_obs = scorer.score(scan, &pose).log_likelihood / gain;
                 samples.push((Vector3::new(dx, dy, da), log_obs + log_motion));
             }

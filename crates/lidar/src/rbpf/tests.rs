@@ -258,7 +258,12 @@ fn climbed_x(means: Option<&hit_means::HitMeans>, grid: &OccupancyGrid) -> f64 {
     let scorer = GridScorer::new(grid, means, &config);
     let scan = PreparedScan::new(&wall_scan(), 0.1, 30.0, 1, grid.resolution_m());
     let start = Pose2::new(Vector2::new(-0.03, 0.0), 0.0);
-    scorer.climb(&scan, &start, &config).0.translation.vector.x
+    scorer
+        .climb(&scan, &start, &config, None)
+        .0
+        .translation
+        .vector
+        .x
 }
 
 #[test]
@@ -283,4 +288,35 @@ fn mean_hit_points_match_below_the_cell_size() {
         "mean hit points: x = {with_means}"
     );
     assert!(with_centres > 0.008, "cell centres: x = {with_centres}");
+}
+
+/// With `climb_with_motion_prior`, a tight motion prior holds the climb at the prediction
+/// 3 cm behind the wall's match; a loose one lets it reach the match as the plain climb does.
+#[test]
+fn a_tight_motion_prior_holds_the_climb_near_the_prediction() {
+    let scan = wall_scan();
+    let mut grid = OccupancyGrid::new(OccupancyGridConfig::default()).unwrap();
+    for _ in 0..3 {
+        grid.insert_scan(&scan, &Pose2::identity()).unwrap();
+    }
+    let config = proposal::ProposalConfig::default();
+    let scorer = GridScorer::new(&grid, None, &config);
+    let prepared = PreparedScan::new(&scan, 0.1, 30.0, 1, grid.resolution_m());
+    let start = Pose2::new(Vector2::new(-0.03, 0.0), 0.0);
+    let prior = |sigma: f64| proposal::MotionPrior {
+        predicted: start,
+        information: nalgebra::Matrix3::identity() / (sigma * sigma),
+    };
+    let x = |p: Option<&proposal::MotionPrior>| {
+        scorer
+            .climb(&prepared, &start, &config, p)
+            .0
+            .translation
+            .vector
+            .x
+    };
+    let (plain, loose, tight) = (x(None), x(Some(&prior(1.0))), x(Some(&prior(0.001))));
+    assert!(plain > 0.0, "plain climb: x = {plain}");
+    assert!((loose - plain).abs() < 1e-9, "loose prior: x = {loose}");
+    assert!((tight + 0.03).abs() < 0.002, "tight prior: x = {tight}");
 }
