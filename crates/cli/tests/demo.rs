@@ -54,27 +54,33 @@ fn check_bounds(report: &serde_json::Value, icp_mean_m: f64, pf_mean_m: f64) {
     }
 }
 
-/// The kidnapped-drone check (`metrics.layer_localisation`): the layer whose particles spread
-/// least is within one of the true layer (held on `small` and `large` seeds 1–3, not on
-/// `office`). Its position is not checked: in `small` the particles settle on the mirror image
-/// of the pose through the room's central pillar (1.8 m off after 200 scans, seeds 1–3), as the
-/// scans from there do not reach the one wall stub that breaks the symmetry (BENCHMARKS.md,
-/// "Layer choice by particles").
-fn check_layer_choice(report: &serde_json::Value) {
+/// The kidnapped-drone check (`metrics.layer_localisation`): the hypothesis whose particles
+/// spread least started in a layer within one of the true layer and ends within one of it
+/// (held on `small` and `large` seeds 1–5 and `office` seeds 1–5, BENCHMARKS.md, "Layer
+/// choice by particles, following the layer changes"). Its position is checked only where the
+/// room has no symmetry (`max_error_m`): in `small` the particles can settle on a quarter-turn
+/// image of the pose about the room's central pillar (3.2–3.6 m off in seeds 1, 3, 4, 5).
+fn check_layer_choice(report: &serde_json::Value, max_error_m: Option<f64>) {
     let found = &report["metrics"]["layer_localisation"];
     let chosen = found["chosen_layer"].as_i64().expect("a chosen layer");
     let truth = found["true_layer"].as_i64().unwrap();
+    let chosen_end = found["chosen_layer_end"].as_i64().unwrap();
+    let truth_end = found["true_layer_end"].as_i64().unwrap();
     let candidates = found["candidates"].as_array().unwrap().len();
-    eprintln!("layer choice: {chosen} (true {truth}) of {candidates} candidates");
+    let error = found["position_error_m"]["end"].as_f64().unwrap();
+    eprintln!(
+        "layer choice: {chosen} (true {truth}) of {candidates} candidates, at the end \
+         {chosen_end} (true {truth_end}), error {error:.3} m"
+    );
     assert!(candidates >= 1);
     assert!(
-        (chosen - truth).abs() <= 1,
-        "chose layer {chosen}, true {truth}"
+        (chosen - truth).abs() <= 1 && (chosen_end - truth_end).abs() <= 1,
+        "chose layer {chosen} (true {truth}), at the end {chosen_end} (true {truth_end})"
     );
-    assert!(found["position_error_m"]["end"]
-        .as_f64()
-        .unwrap()
-        .is_finite());
+    assert!(error.is_finite());
+    if let Some(max) = max_error_m {
+        assert!(error < max, "position error {error} m");
+    }
 }
 
 #[test]
@@ -101,7 +107,7 @@ fn demo_small_within_the_seed_errors_and_writes_every_output() {
             .unwrap_or(0);
         assert!(len > 0, "{file} missing or empty");
     }
-    check_layer_choice(&report);
+    check_layer_choice(&report, None);
     let layers = report["layers"]["count"].as_u64().unwrap();
     assert!(layers >= 2, "the flight crosses height layers: {layers}");
     let html = std::fs::read_to_string(dir.path().join("report.html")).unwrap();
@@ -123,5 +129,9 @@ fn demo_small_within_the_seed_errors_and_writes_every_output() {
 
 #[test]
 fn demo_large_within_the_seed_errors() {
-    demo("large", tempfile::tempdir().unwrap().path(), [0.29, 0.33]);
+    let Some(report) = demo("large", tempfile::tempdir().unwrap().path(), [0.29, 0.33]) else {
+        return;
+    };
+    // the error includes the layer map's own (layered ICP-SLAM's) error: 0.35 m in seed 1
+    check_layer_choice(&report, Some(0.6));
 }

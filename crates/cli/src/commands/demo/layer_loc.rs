@@ -3,8 +3,9 @@
 //! per-layer grid maps layered ICP-SLAM built. From a start scan in the second half of the
 //! flight, the up and down range readings give the candidate layers; one Monte Carlo
 //! localiser per candidate (Dellaert et al., ICRA 1999), globally initialised over that
-//! layer's map, then takes the following scans with the layered estimate's pose increments as
-//! its motion and the height tracker's layer changes as its climbs and descents. The
+//! layer's map, then takes the scans to the end of the flight with the layered estimate's pose
+//! increments as its motion and the height tracker's layer changes as its climbs and
+//! descents. The
 //! hypothesis whose particles spread least is chosen; its start layer is compared with the
 //! true layer (true height over layer height) at the start, its layer at the end with the true
 //! one then, and its position with the ground truth.
@@ -24,11 +25,10 @@ use std::collections::BTreeMap;
 
 /// The start scan is the first one after this share of the flight whose true layer has a map.
 const START_FRACTION: f64 = 0.6;
-/// Scans given to the localisers after the start, at most (keeps the default demo short).
-const WINDOW_SCANS: usize = 200;
 /// The position error is also reported after this many scans.
 const EARLY_SCANS: usize = 50;
-/// The best hypothesis counts as converged once its particles' spread is below this \[m\].
+/// The best hypothesis counts as converged once its particles' spread after an update is below
+/// this \[m\].
 const CONVERGED_SPREAD_M: f64 = 0.3;
 
 /// What the re-localisation found.
@@ -37,21 +37,21 @@ pub struct LayerLocalisation {
     pub start_scan: usize,
     /// Candidate layers from the start scan's range readings (those with a map).
     pub candidates: Vec<i64>,
-    /// Hypotheses still followed at the end of the window, with their horizontal errors \[m\].
+    /// Every hypothesis at the end, with its horizontal error \[m\].
     pub hypotheses: Vec<(LayerHypothesis, Option<f64>)>,
-    /// The hypothesis whose particles spread least at the end of the window.
+    /// The hypothesis whose particles spread least (mean over its updates) at the end.
     pub chosen: Option<LayerHypothesis>,
     /// Layer of the true height at the start scan (the one the candidates are for).
     pub true_layer: i64,
     /// Layer of the true height at the last update.
     pub true_layer_end: i64,
-    /// Filter updates run in the window.
+    /// Filter updates run.
     pub updates: usize,
     /// Scans until the best hypothesis's spread first fell below [`CONVERGED_SPREAD_M`].
     pub converged_after_scans: Option<usize>,
     /// Horizontal error of the best hypothesis's position after [`EARLY_SCANS`] scans \[m\].
     pub error_early_m: Option<f64>,
-    /// Horizontal error of the best hypothesis's position at the end of the window \[m\].
+    /// Horizontal error of the best hypothesis's position at the last update \[m\].
     pub error_end_m: Option<f64>,
     /// Scans from the start to the last update.
     pub scans: usize,
@@ -91,6 +91,23 @@ fn config(seed: u64) -> LayerPfConfig {
     config
 }
 
+/// The first scan after [`START_FRACTION`] of the flight matched in a layer whose true layer
+/// has a map.
+fn start_scan(
+    run: &LidarRun,
+    estimates: &[LayeredEstimate],
+    maps: &BTreeMap<i64, OccupancyGrid>,
+    layer_height_m: f64,
+) -> Option<usize> {
+    let first = (run.scans.len() as f64 * START_FRACTION) as usize;
+    (first..run.scans.len()).find(|&i| {
+        true_layer(run, i, layer_height_m).is_some_and(|k| maps.contains_key(&k))
+            && estimates
+                .get(i)
+                .is_some_and(|e| e.layer.is_some() && matches!(e.status, LayerScanStatus::Slam(_)))
+    })
+}
+
 /// Runs the re-localisation on `maps` (the layer grids in the simulator's frame).
 pub fn relocalise(
     run: &LidarRun,
@@ -102,15 +119,7 @@ pub fn relocalise(
     let started = std::time::Instant::now();
     let height = LayeredSlamConfig::default().height;
     let h = height.layer_height_m;
-    let first = (run.scans.len() as f64 * START_FRACTION) as usize;
-    let start = (first..run.scans.len())
-        .find(|&i| {
-            true_layer(run, i, h).is_some_and(|k| maps.contains_key(&k))
-                && estimates.get(i).is_some_and(|e| {
-                    e.layer.is_some() && matches!(e.status, LayerScanStatus::Slam(_))
-                })
-        })
-        .ok_or(NotRun::NoStartScan)?;
+    let start = start_scan(run, estimates, maps, h).ok_or(NotRun::NoStartScan)?;
     let scan = run.scans.get(start).ok_or(NotRun::NoStartScan)?;
     let start_estimate = estimates.get(start).ok_or(NotRun::NoStartScan)?;
     let range = latest_reading(&run.ranges, scan.timestamp);
@@ -148,8 +157,7 @@ pub fn relocalise(
         start_estimate.smooth_world_from_base,
         start_estimate.layer.unwrap_or_default(),
     );
-    let end = (start + WINDOW_SCANS).min(run.scans.len());
-    for i in start..end {
+    for i in start..run.scans.len() {
         let (Some(scan), Some(e)) = (run.scans.get(i), estimates.get(i)) else {
             break;
         };
@@ -176,7 +184,7 @@ pub fn relocalise(
             continue;
         };
         let scans = i + 1 - start;
-        if found.converged_after_scans.is_none() && best.spread_m < CONVERGED_SPREAD_M {
+        if found.converged_after_scans.is_none() && best.spread_now_m < CONVERGED_SPREAD_M {
             found.converged_after_scans = Some(scans);
         }
         let error = error_m(run, i, &best.estimate.world_from_base);
@@ -212,6 +220,8 @@ pub fn metrics_json(found: Result<&LayerLocalisation, &NotRun>) -> serde_json::V
                 "start_layer": hyp.start_layer,
                 "layer": hyp.layer,
                 "spread_m": hyp.spread_m,
+                "spread_now_m": hyp.spread_now_m,
+                "mapped": hyp.mapped,
                 "particles": hyp.estimate.particles,
                 "position_error_m": error,
             })
