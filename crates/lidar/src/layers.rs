@@ -25,9 +25,7 @@
 //!   and only within a gate around the prior; keyframes go in at the corrected pose;
 //! * each new keyframe is searched against old keyframes near it (of any layer) with a wide
 //!   window ([`mod@relocalise`]), and a clearly better, plausible match moves the pose past the
-//!   gate, spreading the correction over the keyframes of the drift; or, when
-//!   [`back_end`] is enabled (off by default: it measured worse in `office`), each such match
-//!   becomes a loop edge of a pose graph of every keyframe, which is optimised and followed;
+//!   gate, spreading the correction over the keyframes of the drift;
 //! * the pose is 3D: x, y and yaw from the layer's map, height from the range finders, roll
 //!   and pitch from the flight controller.
 //!
