@@ -32,7 +32,6 @@
 //! Every layer map is in the world frame (the first scan's pose), so nothing has to be chained
 //! between layers.
 
-pub mod back_end;
 pub mod degeneracy;
 pub mod height;
 pub mod layer_map;
@@ -45,7 +44,6 @@ use crate::error::check_fields;
 use crate::icp_slam::{IcpSlamConfig, ScanStatus};
 use crate::point_map::Keyframe;
 use crate::LidarError;
-use back_end::{BackEndConfig, KeyframeGraph};
 use degeneracy::{remap, scan_information, weakest};
 use height::{HeightConfig, HeightTracker};
 use layer_map::{LayerIcpMap, PreparedScan};
@@ -102,8 +100,6 @@ pub struct LayeredSlamConfig {
     pub gate_growth_radps: f64,
     /// Re-localisation on old keyframes, past the gate ([`mod@relocalise`]).
     pub relocalise: RelocaliseConfig,
-    /// The pose graph of the keyframes that re-localisations tie to old ones ([`back_end`]).
-    pub back_end: BackEndConfig,
     /// Scan matching and keyframe insertion in every layer: the ICP, correlative fallback,
     /// range, normal, map and insertion settings of ICP-SLAM (its odometry and loop-closure
     /// settings are not used). By default every keyframe is kept, so that a layer's whole map
@@ -128,7 +124,6 @@ impl Default for LayeredSlamConfig {
             gate_rad: 0.03,
             gate_growth_radps: 0.1,
             relocalise: RelocaliseConfig::default(),
-            back_end: BackEndConfig::default(),
             slam: IcpSlamConfig {
                 map_keyframes: 0,
                 ..IcpSlamConfig::default()
@@ -142,7 +137,6 @@ impl LayeredSlamConfig {
     pub fn validate(&self) -> Result<(), LidarError> {
         self.slam.validate()?;
         self.relocalise.validate()?;
-        self.back_end.validate()?;
         let non_negative = |field, value: f64| (field, value, value >= 0.0);
         let checks = [
             non_negative("max_tilt_rad", self.max_tilt_rad),
@@ -268,8 +262,6 @@ pub struct LayeredIcpSlam {
     last_match_s: Option<f64>,
     /// Every keyframe inserted, in time order, for re-localisation.
     keyframe_log: Vec<LoggedKeyframe>,
-    /// The keyframes of `keyframe_log` as a pose graph.
-    graph: KeyframeGraph,
     /// Time of the last re-localisation \[s\].
     last_relocalised_s: Option<f64>,
     /// Product of every re-localisation's correction (corrected = this · smooth).
@@ -294,7 +286,6 @@ impl LayeredIcpSlam {
             velocity: VelocityTracker::new(config.velocity_window_s, config.max_speed_mps),
             last_match_s: None,
             keyframe_log: Vec::new(),
-            graph: KeyframeGraph::new(),
             last_relocalised_s: None,
             corrections: Pose2::identity(),
             stats: LayeredStats::default(),
@@ -475,9 +466,6 @@ impl LayeredIcpSlam {
             .layers
             .get(&layer)
             .map_or(0, |l| l.map().keyframes_inserted().saturating_sub(1));
-        let node = self
-            .graph
-            .add_keyframe(pose, scan.timestamp, &self.config.back_end);
         self.keyframe_log.push(LoggedKeyframe {
             layer,
             index,
@@ -489,23 +477,6 @@ impl LayeredIcpSlam {
             },
         });
         match found {
-            Some(found) if self.config.back_end.enabled => {
-                let tied = self.graph.add_loop(
-                    found.anchor,
-                    node,
-                    &found.world_from_base,
-                    &information,
-                    self.config.relocalise.min_constraint,
-                    &self.config.back_end,
-                );
-                if !tied {
-                    return (pose, status, fixed.is_some());
-                }
-                self.graph.optimise(&self.config.back_end);
-                let moved = self.follow_graph();
-                self.stats.relocalisations += 1;
-                (renormalised(moved * pose), status, true)
-            }
             Some(found) => {
                 let anchor = self
                     .last_relocalised_s
@@ -540,32 +511,6 @@ impl LayeredIcpSlam {
         self.corrections = renormalised(partial_correction(from, to, 1.0) * self.corrections);
         self.last_relocalised_s = Some(now_s);
         self.stats.relocalisations += 1;
-    }
-
-    /// Moves every keyframe, and the layer maps, to the graph's optimised poses, and the
-    /// velocity history and the path's corrections by the newest keyframe's move; returns that
-    /// move (new pose = move · old pose).
-    fn follow_graph(&mut self) -> Pose2 {
-        let mut by_layer: BTreeMap<i64, BTreeMap<usize, Pose2>> = BTreeMap::new();
-        let mut newest = Pose2::identity();
-        for (k, node) in self.keyframe_log.iter_mut().zip(self.graph.poses()) {
-            let node = renormalised(*node);
-            newest = node * k.keyframe.world_from_base.inverse();
-            let d = k.keyframe.world_from_base.inverse() * node;
-            if d.translation.vector.norm() > 1e-6 || d.rotation.angle().abs() > 1e-7 {
-                k.keyframe.world_from_base = node;
-                by_layer.entry(k.layer).or_default().insert(k.index, node);
-            }
-        }
-        for (layer, poses) in by_layer {
-            if let Some(map) = self.layers.get_mut(&layer) {
-                map.relocate(|i| poses.get(&i).copied());
-            }
-        }
-        let newest = renormalised(newest);
-        self.velocity.relocate(|_, p| renormalised(newest * p));
-        self.corrections = renormalised(newest * self.corrections);
-        newest
     }
 
     /// A raw match, if it is within the gate around `predicted` at time `t_s`, kept along the

@@ -176,8 +176,6 @@ pub struct Relocalisation {
     pub world_from_base: Pose2,
     /// Time of the newest old keyframe matched \[s\].
     pub anchor_s: f64,
-    /// Index in the log of that keyframe.
-    pub anchor: usize,
 }
 
 /// Matches the query scan against the old keyframes of `log` near it; `Some` when the match is
@@ -191,11 +189,11 @@ pub fn relocalise(
         return None;
     }
     let old = old_keyframes(log, query, config);
-    let (anchor, anchor_s) = old
+    let anchor_s = old
         .iter()
-        .map(|(i, k)| (*i, k.time_s))
-        .max_by(|a, b| a.1.total_cmp(&b.1))?;
-    let keyframes: Vec<Keyframe> = old.iter().map(|(_, k)| k.keyframe.clone()).collect();
+        .map(|k| k.time_s)
+        .fold(f64::NEG_INFINITY, f64::max);
+    let keyframes: Vec<Keyframe> = old.iter().map(|k| k.keyframe.clone()).collect();
     let target: Vec<Point2<f64>> = keyframes
         .iter()
         .flat_map(|k| k.points.iter().map(|p| k.world_from_base * p))
@@ -225,23 +223,21 @@ pub fn relocalise(
     plausible(query, &kept, &index, anchor_s, config).then_some(Relocalisation {
         world_from_base: kept,
         anchor_s,
-        anchor,
     })
 }
 
-/// The old keyframes to match against, with their indices in the log: at least `min_age_s`
-/// old, of layers within `max_height_gap_m`, within `search_radius_m`; the oldest
-/// `max_keyframes` of them (the oldest maps hold the least drift).
+/// The old keyframes to match against: at least `min_age_s` old, of layers within
+/// `max_height_gap_m`, within `search_radius_m`; the oldest `max_keyframes` of them (the oldest
+/// maps hold the least drift).
 fn old_keyframes<'a>(
     log: &'a [LoggedKeyframe],
     query: &Query,
     config: &RelocaliseConfig,
-) -> Vec<(usize, &'a LoggedKeyframe)> {
+) -> Vec<&'a LoggedKeyframe> {
     let here = query.pose.translation.vector;
-    let mut old: Vec<(usize, &LoggedKeyframe)> = log
+    let mut old: Vec<&LoggedKeyframe> = log
         .iter()
-        .enumerate()
-        .filter(|(_, k)| {
+        .filter(|k| {
             let gap = (k.layer - query.layer).abs() as f64 * query.layer_height_m;
             let distance = (k.keyframe.world_from_base.translation.vector - here).norm();
             k.time_s <= query.time_s - config.min_age_s
@@ -249,7 +245,7 @@ fn old_keyframes<'a>(
                 && distance <= config.search_radius_m
         })
         .collect();
-    old.sort_by(|a, b| a.1.time_s.total_cmp(&b.1.time_s));
+    old.sort_by(|a, b| a.time_s.total_cmp(&b.time_s));
     old.truncate(config.max_keyframes);
     old
 }
