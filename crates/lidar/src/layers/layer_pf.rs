@@ -13,9 +13,9 @@
 //! layers, every hypothesis's particles move to the map `n` layers up or down (as the seed's
 //! layered filter re-enters layers), so a hypothesis is "the drone started in layer `k`" and
 //! the run may cross layers; while a hypothesis's layer has no map its particles are not
-//! weighted and spread with the motion noise. The layer whose
-//! map explains the scans gathers its particles, the others stay spread (their maps lack what
-//! the scan sees, or are ambiguous).
+//! weighted and spread with the motion noise. The layer whose map explains the scans gathers
+//! its particles, the others stay spread (their maps lack what the scan sees, or are
+//! ambiguous).
 //!
 //! The spread compared is the particles' RMS distance to their mean after each update's
 //! resampling ([`Mcl::spread_m`]), averaged over all of the hypothesis's updates: one update

@@ -153,18 +153,29 @@ pub fn relocalise(
         particles: localiser.global_particles(),
         seconds: 0.0,
     };
-    let mut previous = (
-        start_estimate.smooth_world_from_base,
-        start_estimate.layer.unwrap_or_default(),
-    );
-    for i in start..run.scans.len() {
-        let (Some(scan), Some(e)) = (run.scans.get(i), estimates.get(i)) else {
-            break;
-        };
+    let first = (start_estimate.smooth_world_from_base, start_estimate.layer);
+    follow(run, estimates, first, &config, &mut localiser, &mut found);
+    found.seconds = started.elapsed().as_secs_f64();
+    Ok(found)
+}
+
+/// Gives the localiser every scan from `found.start_scan` to the end of the flight, due as in
+/// `run_mcl` (once the drone moved or turned enough: updating on every scan of a hover counts
+/// the same view again and again), skipping the tilted ones (they cut the room at a slant, and
+/// layered ICP-SLAM skips them too), and notes the best hypothesis after each update. `first`
+/// is the start scan's planar pose and tracked layer.
+fn follow(
+    run: &LidarRun,
+    estimates: &[LayeredEstimate],
+    first: (Pose2, Option<i64>),
+    config: &LayerPfConfig,
+    localiser: &mut LayerLocaliser,
+    found: &mut LayerLocalisation,
+) {
+    let start = found.start_scan;
+    let mut previous = (first.0, first.1.unwrap_or_default());
+    for (i, (scan, e)) in run.scans.iter().zip(estimates).enumerate().skip(start) {
         let increment = previous.0.inverse() * e.smooth_world_from_base;
-        // as `run_mcl`: an update once the drone moved or turned enough (updating on every
-        // scan of a hover counts the same view again and again); tilted scans cut the room at
-        // a slant and are skipped, as layered ICP-SLAM skips them
         let due = i == start
             || moved_enough(
                 &increment,
@@ -180,29 +191,33 @@ pub fn relocalise(
         localiser.update(&increment, layer - previous.1, scan);
         previous = (e.smooth_world_from_base, layer);
         found.updates += 1;
-        let Some(best) = localiser.best() else {
-            continue;
-        };
-        let scans = i + 1 - start;
-        if found.converged_after_scans.is_none() && best.spread_now_m < CONVERGED_SPREAD_M {
-            found.converged_after_scans = Some(scans);
-        }
-        let error = error_m(run, i, &best.estimate.world_from_base);
-        if found.error_early_m.is_none() && scans >= EARLY_SCANS {
-            found.error_early_m = error;
-        }
-        found.chosen = Some(best);
-        found.error_end_m = error;
-        found.scans = scans;
-        found.true_layer_end = true_layer(run, i, h).unwrap_or_default();
-        found.hypotheses = localiser
-            .hypotheses()
-            .into_iter()
-            .map(|hyp| (hyp, error_m(run, i, &hyp.estimate.world_from_base)))
-            .collect();
+        note(run, i, localiser, found);
     }
-    found.seconds = started.elapsed().as_secs_f64();
-    Ok(found)
+}
+
+/// Notes the best hypothesis after the update at scan `i`.
+fn note(run: &LidarRun, i: usize, localiser: &LayerLocaliser, found: &mut LayerLocalisation) {
+    let Some(best) = localiser.best() else {
+        return;
+    };
+    let scans = i + 1 - found.start_scan;
+    if found.converged_after_scans.is_none() && best.spread_now_m < CONVERGED_SPREAD_M {
+        found.converged_after_scans = Some(scans);
+    }
+    let error = error_m(run, i, &best.estimate.world_from_base);
+    if found.error_early_m.is_none() && scans >= EARLY_SCANS {
+        found.error_early_m = error;
+    }
+    let h = LayeredSlamConfig::default().height.layer_height_m;
+    found.chosen = Some(best);
+    found.error_end_m = error;
+    found.scans = scans;
+    found.true_layer_end = true_layer(run, i, h).unwrap_or_default();
+    found.hypotheses = localiser
+        .hypotheses()
+        .into_iter()
+        .map(|hyp| (hyp, error_m(run, i, &hyp.estimate.world_from_base)))
+        .collect();
 }
 
 /// `metrics.layer_localisation` of `report.json`.
