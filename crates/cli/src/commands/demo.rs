@@ -146,8 +146,14 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     write_tum(&out.join("groundtruth.tum"), &run.ground_truth)?;
     let sim_from_slam = sim_from_slam(&run)?;
     let (layer_files, layer_maps) = write_maps(&out, &run, &estimates, &sim_from_slam)?;
-    let layer_loc =
-        layer_loc::relocalise(&run, &estimates, &layer_maps, sim.world.height_m, args.seed);
+    let layer_loc = layer_loc::relocalise(
+        &run,
+        &estimates,
+        &layer_maps,
+        &config.height,
+        sim.world.height_m,
+        args.seed,
+    );
     drop(layer_maps);
     let cloud: Vec<Point3<f64>> = slam
         .merged_cloud()

@@ -14,10 +14,11 @@ use super::latest_reading;
 use nalgebra::Vector2;
 use serde_json::json;
 use slamkit_core::Pose2;
+use slamkit_lidar::layers::height::HeightConfig;
 use slamkit_lidar::layers::layer_pf::{
     candidate_layers, LayerHypothesis, LayerLocaliser, LayerPfConfig, LayerPfError,
 };
-use slamkit_lidar::layers::{LayerScanStatus, LayeredEstimate, LayeredSlamConfig};
+use slamkit_lidar::layers::{LayerScanStatus, LayeredEstimate};
 use slamkit_lidar::particles::moved_enough;
 use slamkit_map::OccupancyGrid;
 use slamkit_sim::LidarRun;
@@ -37,7 +38,7 @@ pub struct LayerLocalisation {
     pub start_scan: usize,
     /// Candidate layers from the start scan's range readings (those with a map).
     pub candidates: Vec<i64>,
-    /// Every hypothesis at the end, with its horizontal error \[m\].
+    /// Every hypothesis after the last update, with its horizontal error \[m\].
     pub hypotheses: Vec<(LayerHypothesis, Option<f64>)>,
     /// The hypothesis whose particles spread least (mean over its updates) at the end.
     pub chosen: Option<LayerHypothesis>,
@@ -108,16 +109,17 @@ fn start_scan(
     })
 }
 
-/// Runs the re-localisation on `maps` (the layer grids in the simulator's frame).
+/// Runs the re-localisation on `maps` (the layer grids in the simulator's frame), with the
+/// layers and range-finder offsets of `height` (those layered ICP-SLAM ran with).
 pub fn relocalise(
     run: &LidarRun,
     estimates: &[LayeredEstimate],
     maps: &BTreeMap<i64, OccupancyGrid>,
+    height: &HeightConfig,
     ceiling_m: f64,
     seed: u64,
 ) -> Result<LayerLocalisation, NotRun> {
     let started = std::time::Instant::now();
-    let height = LayeredSlamConfig::default().height;
     let h = height.layer_height_m;
     let start = start_scan(run, estimates, maps, h).ok_or(NotRun::NoStartScan)?;
     let scan = run.scans.get(start).ok_or(NotRun::NoStartScan)?;
@@ -128,7 +130,7 @@ pub fn relocalise(
         range.and_then(|r| r.up_m),
         range.and_then(|r| r.down_m),
         ceiling_m,
-        &height,
+        height,
     );
     let config = config(seed);
     let mut localiser = match LayerLocaliser::new(maps, &candidates, &config) {
@@ -154,7 +156,14 @@ pub fn relocalise(
         seconds: 0.0,
     };
     let first = (start_estimate.smooth_world_from_base, start_estimate.layer);
-    follow(run, estimates, first, &config, &mut localiser, &mut found);
+    if let Some(last) = follow(run, estimates, first, &config, &mut localiser, &mut found) {
+        found.true_layer_end = true_layer(run, last, h).unwrap_or_default();
+        found.hypotheses = localiser
+            .hypotheses()
+            .into_iter()
+            .map(|hyp| (hyp, error_m(run, last, &hyp.estimate.world_from_base)))
+            .collect();
+    }
     found.seconds = started.elapsed().as_secs_f64();
     Ok(found)
 }
@@ -163,7 +172,8 @@ pub fn relocalise(
 /// `run_mcl` (once the drone moved or turned enough: updating on every scan of a hover counts
 /// the same view again and again), skipping the tilted ones (they cut the room at a slant, and
 /// layered ICP-SLAM skips them too), and notes the best hypothesis after each update. `first`
-/// is the start scan's planar pose and tracked layer.
+/// is the start scan's planar pose and tracked layer. Returns the index of the last scan
+/// updated on.
 fn follow(
     run: &LidarRun,
     estimates: &[LayeredEstimate],
@@ -171,8 +181,9 @@ fn follow(
     config: &LayerPfConfig,
     localiser: &mut LayerLocaliser,
     found: &mut LayerLocalisation,
-) {
+) -> Option<usize> {
     let start = found.start_scan;
+    let mut last = None;
     let mut previous = (first.0, first.1.unwrap_or_default());
     for (i, (scan, e)) in run.scans.iter().zip(estimates).enumerate().skip(start) {
         let increment = previous.0.inverse() * e.smooth_world_from_base;
@@ -191,8 +202,10 @@ fn follow(
         localiser.update(&increment, layer - previous.1, scan);
         previous = (e.smooth_world_from_base, layer);
         found.updates += 1;
+        last = Some(i);
         note(run, i, localiser, found);
     }
+    last
 }
 
 /// Notes the best hypothesis after the update at scan `i`.
@@ -208,16 +221,9 @@ fn note(run: &LidarRun, i: usize, localiser: &LayerLocaliser, found: &mut LayerL
     if found.error_early_m.is_none() && scans >= EARLY_SCANS {
         found.error_early_m = error;
     }
-    let h = LayeredSlamConfig::default().height.layer_height_m;
     found.chosen = Some(best);
     found.error_end_m = error;
     found.scans = scans;
-    found.true_layer_end = true_layer(run, i, h).unwrap_or_default();
-    found.hypotheses = localiser
-        .hypotheses()
-        .into_iter()
-        .map(|hyp| (hyp, error_m(run, i, &hyp.estimate.world_from_base)))
-        .collect();
 }
 
 /// `metrics.layer_localisation` of `report.json`.
