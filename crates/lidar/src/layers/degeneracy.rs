@@ -60,6 +60,26 @@ pub fn remap(
     predicted * se2_exp(&kept)
 }
 
+/// The translation `t` (body frame) kept along the directions in which the translation block
+/// of `information` (the scan's information on the position with the heading held) has an
+/// eigenvalue of at least `min_eigenvalue`, zero along the others.
+pub fn pinned_translation(
+    t: &Vector2<f64>,
+    information: &Matrix3<f64>,
+    min_eigenvalue: f64,
+) -> Vector2<f64> {
+    let eigen = information
+        .fixed_view::<2, 2>(0, 0)
+        .into_owned()
+        .symmetric_eigen();
+    eigen
+        .eigenvalues
+        .iter()
+        .zip(eigen.eigenvectors.column_iter())
+        .filter(|(value, _)| **value >= min_eigenvalue)
+        .fold(Vector2::zeros(), |acc, (_, v)| acc + v * v.dot(t))
+}
+
 /// The smallest eigenvalue of `information` (how well the worst direction is pinned).
 pub fn weakest(information: &Matrix3<f64>) -> f64 {
     information.symmetric_eigen().eigenvalues.min()
