@@ -14,15 +14,20 @@
 //!   motion prior;
 //! * the motion prior is the drone's recent velocity, carried through take-offs and stops by
 //!   the acceleration its tilt shows, pulled towards a downward optical-flow sensor's velocity
-//!   and turning as the IMU's yaw-rate gyro does when there are those ([`velocity`]), or the
-//!   scans' odometry if asked;
+//!   and turning as the IMU's yaw-rate gyro does, less its estimated bias, when there are
+//!   those ([`velocity`]), or the scans' odometry if asked;
+//! * with a gyro, the heading is a Kalman filter's over the heading error and the gyro bias
+//!   ([`heading`]): each match measures the heading with the information its scan has on it
+//!   when the position is free, and a match whose heading the filter finds implausible is
+//!   dropped;
 //! * on a layer change the scan is first aligned by ICP to the map of the layer the drone comes
 //!   from, so that a new map starts where the old one ends and an old one is re-entered from
 //!   where the drone is (an addition to the seed method, which started new layers from the
 //!   odometry pose);
 //! * a match corrects the prior only along the directions the scan constrains
-//!   ([`degeneracy`]: one wall in range pins the distance to it, not the position along it),
-//!   and only within a gate around the prior; keyframes go in at the corrected pose;
+//!   ([`degeneracy`]: one wall in range pins the distance to it, not the position along it;
+//!   with the heading held by the filter, a pillar's arc pins the position across the line of
+//!   sight), and only within a gate around the prior; keyframes go in at the corrected pose;
 //! * each new keyframe is searched against old keyframes near it (of any layer) with a wide
 //!   window ([`mod@relocalise`]), and a clearly better, plausible match moves the pose past the
 //!   gate, spreading the correction over the keyframes of the drift;

@@ -116,4 +116,19 @@ mod tests {
         let kept = remap(&predicted, &matched, &h, 5.0);
         assert!((kept.translation.vector - matched.translation.vector).norm() < 1e-9);
     }
+
+    #[test]
+    fn a_wall_across_the_view_keeps_the_shift_towards_it_and_drops_the_one_along_it() {
+        let wall: Vec<Point2<f64>> = (0..41)
+            .map(|i| Point2::new(1.0, -1.0 + 0.05 * f64::from(i)))
+            .collect();
+        let h = scan_information(&wall, &vec![Some(Vector2::new(-1.0, 0.0)); wall.len()]);
+        let kept = pinned_translation(&Vector2::new(0.03, 0.2), &h, 5.0);
+        assert!((kept - Vector2::new(0.03, 0.0)).norm() < 1e-9, "{kept}");
+        // nothing is kept when even the wall is below the threshold
+        assert_eq!(
+            pinned_translation(&Vector2::new(0.03, 0.2), &h, 100.0),
+            Vector2::zeros()
+        );
+    }
 }
