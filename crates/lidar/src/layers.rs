@@ -338,6 +338,8 @@ impl LayeredIcpSlam {
             .update(vertical(input.up_m), vertical(input.down_m));
         let accel = tilt_acceleration(roll, pitch);
         let predicted = self.predict(input, &accel);
+        self.velocity
+            .record_acceleration(input.scan.timestamp, predicted.rotation * accel);
         let tilted = cos_tilt.acos() > self.config.max_tilt_rad;
         let (pose, status) = match height {
             None => {
@@ -355,7 +357,7 @@ impl LayeredIcpSlam {
                         self.match_in_layer(h.layer, input.scan, predicted);
                     self.timings.record_since("layer_slam", start);
                     if accepted {
-                        self.velocity.observe(input.scan.timestamp, pose, &accel);
+                        self.velocity.observe(input.scan.timestamp, pose);
                         self.last_match_s = Some(input.scan.timestamp);
                     }
                     (pose, LayerScanStatus::Slam(status))
