@@ -90,8 +90,8 @@ pub struct LayeredSlamConfig {
     /// information matrix has at least this eigenvalue (about that many points pinning the
     /// pose; [`degeneracy`]); 0 keeps every match whole. With a gyro the heading is the
     /// [`heading`] filter's and this applies to the position at that heading, which a
-    /// pillar's arc pins across the line of sight with 5–15 points (`office` seeds 1–5, median
-    /// mean error: 0.13 m at 5, 0.20 m at 3, 0.40 m at 10).
+    /// pillar's arc pins across the line of sight with 5–15 points (`office` seeds 1–5 at
+    /// commit a98a719, median mean error: 0.13 m at 5, 0.32 m at 3, 0.54 m at 10, 0.32 m at 20).
     pub min_constraint: f64,
     /// Normals for that information matrix are fitted to at most this many nearest points,
     /// within `information_normal_radius_m`.
@@ -100,8 +100,9 @@ pub struct LayeredSlamConfig {
     /// millimetres apart with a centimetre of range noise, then reads as a line pinning one
     /// direction rather than as clutter pinning two, while a pillar's arc (0.2 m radius) keeps
     /// its curvature and pins the position across it; fitted to the 20 nearest points within
-    /// 0.5 m, its normals were the chord's (`office` seeds 1–5, median mean error: 0.13 m at
-    /// 0.15 m, 0.29 m at 0.2 m, 0.45 m at 0.1 m, where close walls read as clutter).
+    /// 0.5 m, its normals were the chord's (`office` seeds 1–5 at commit a98a719, median mean
+    /// error: 0.13 m at 0.15 m, 0.29 m at 0.2 m, 0.45 m at 0.1 m, where close walls read as
+    /// clutter).
     pub information_normal_radius_m: f64,
     /// A match may move the predicted pose by at most this, plus `gate_growth_mps` for every
     /// second since the last accepted match \[m\]; a larger correction is a false match (the
