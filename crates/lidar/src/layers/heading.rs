@@ -189,12 +189,9 @@ impl HeadingFilter {
 /// The scan's information on the heading with the translation free: the Schur complement of
 /// the translation block of `information` (clamped at zero).
 pub fn heading_information(information: &Matrix3<f64>) -> f64 {
-    let tt = information.fixed_view::<2, 2>(0, 0).into_owned();
-    let t_theta = information.fixed_view::<2, 1>(0, 2).into_owned();
-    let regularised = tt + Matrix2::identity() * 1e-9;
-    let coupling = regularised
-        .try_inverse()
-        .map_or(0.0, |inv| (t_theta.transpose() * inv * t_theta).x);
+    let coupling = translation_coupling(information).map_or(0.0, |(inverse, t_theta)| {
+        (t_theta.transpose() * inverse * t_theta).x
+    });
     (information[(2, 2)] - coupling).max(0.0)
 }
 
@@ -207,12 +204,19 @@ pub fn translation_at_heading(
     information: &Matrix3<f64>,
     heading_rad: f64,
 ) -> Vector2<f64> {
-    let tt = information.fixed_view::<2, 2>(0, 0).into_owned() + Matrix2::identity() * 1e-9;
-    let t_theta = information.fixed_view::<2, 1>(0, 2).into_owned();
-    let shift = tt.try_inverse().map_or(Vector2::zeros(), |inv| {
-        inv * t_theta * (raw.z - heading_rad)
+    let shift = translation_coupling(information).map_or(Vector2::zeros(), |(inverse, t_theta)| {
+        inverse * t_theta * (raw.z - heading_rad)
     });
     raw.xy() + shift
+}
+
+/// The inverse of the translation block of `information` (regularised, so that a direction no
+/// point pins inverts to a large number rather than failing) and the block coupling the
+/// translation to the heading.
+fn translation_coupling(information: &Matrix3<f64>) -> Option<(Matrix2<f64>, Vector2<f64>)> {
+    let tt = information.fixed_view::<2, 2>(0, 0).into_owned() + Matrix2::identity() * 1e-9;
+    let t_theta = information.fixed_view::<2, 1>(0, 2).into_owned();
+    tt.try_inverse().map(|inverse| (inverse, t_theta))
 }
 
 #[cfg(test)]
