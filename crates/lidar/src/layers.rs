@@ -12,10 +12,11 @@
 //! * scans taken while the drone tilts more than `max_tilt_rad` (while accelerating) are not
 //!   matched: the tilted scan plane cuts the room at other heights; the pose follows the
 //!   motion prior;
-//! * the motion prior is the drone's recent velocity, carried through take-offs and stops by
-//!   the acceleration its tilt shows, pulled towards a downward optical-flow sensor's velocity
-//!   and turning as the IMU's yaw-rate gyro does, less its estimated bias, when there are
-//!   those ([`velocity`]), or the scans' odometry if asked;
+//! * the motion prior is the drone's velocity, a Kalman filter's ([`velocity`]): driven by the
+//!   acceleration its tilt shows (which carries it through take-offs and stops), measured by
+//!   a downward optical-flow sensor when there is one and by every match along the directions
+//!   its scan pins; turning as the IMU's yaw-rate gyro does, less its estimated bias, when
+//!   there is one; or the scans' odometry if asked;
 //! * with a gyro, the heading is a Kalman filter's over the heading error and the gyro bias
 //!   ([`heading`]): each match measures the heading with the information its scan has on it
 //!   when the position is free, and a match whose heading the filter finds implausible is
@@ -24,10 +25,11 @@
 //!   from, so that a new map starts where the old one ends and an old one is re-entered from
 //!   where the drone is (an addition to the seed method, which started new layers from the
 //!   odometry pose);
-//! * a match corrects the prior only along the directions the scan constrains
-//!   ([`degeneracy`]: one wall in range pins the distance to it, not the position along it;
-//!   with the heading held by the filter, a pillar's arc pins the position across the line of
-//!   sight), and only within a gate around the prior; keyframes go in at the corrected pose;
+//! * a match corrects the prior only along the directions the scan constrains ([`degeneracy`]:
+//!   one wall in range pins the distance to it, not the position along it; with the heading
+//!   held by the filter, a pillar's arc pins the position across the line of sight), weighed
+//!   against the prior's uncertainty by the velocity filter, and only within a gate around the
+//!   prior; keyframes go in at the corrected pose;
 //! * each new keyframe is searched against old keyframes near it (of any layer) with a wide
 //!   window ([`mod@relocalise`]), and a clearly better, plausible match moves the pose past the
 //!   gate, spreading the correction over the keyframes of the drift;
@@ -50,7 +52,7 @@ use crate::error::check_fields;
 use crate::icp_slam::{IcpSlamConfig, ScanStatus};
 use crate::point_map::Keyframe;
 use crate::LidarError;
-use degeneracy::{pinned_translation, remap, scan_information, weakest};
+use degeneracy::{remap, scan_information, weakest};
 use heading::{translation_at_heading, HeadingFilter, HeadingFilterConfig, HeadingUpdate};
 use height::{HeightConfig, HeightTracker};
 use layer_map::{LayerIcpMap, PreparedScan};
@@ -60,7 +62,9 @@ use serde::{Deserialize, Serialize};
 use slamkit_core::{LaserScan, Pose2, Pose3, StageTimings};
 use std::collections::BTreeMap;
 use std::time::Instant;
-use velocity::{se2_exp, se2_log, tilt_acceleration, VelocityTracker};
+use velocity::{
+    se2_exp, se2_log, tilt_acceleration, PositionUpdate, VelocityNoise, VelocityTracker,
+};
 
 /// Parameters of layered ICP-SLAM.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -73,19 +77,15 @@ pub struct LayeredSlamConfig {
     /// Align the first scan of a new layer to the map of the previous layer.
     pub align_new_layer: bool,
     /// Predict each scan's pose from the scans' odometry; when false (or a scan has none) from
-    /// the velocity of the recent matched poses ([`velocity`]), which is the better prior for
-    /// the simulated drone's noisy optical-flow odometry.
+    /// the drone's estimated velocity ([`velocity`]), which is the better prior for the
+    /// simulated drone's noisy optical-flow odometry.
     pub use_odometry: bool,
-    /// The constant-velocity prior averages the motion over this long \[s\].
+    /// Without a gyro, the prior turns at the mean turn rate of the matched poses over this long
+    /// \[s\].
     pub velocity_window_s: f64,
-    /// Top horizontal speed of the constant-velocity prior \[m/s\] (above the drone's).
-    pub max_speed_mps: f64,
-    /// Time constant with which an optical-flow velocity, when given, pulls the
-    /// constant-velocity prior towards it \[s\] ([`VelocityTracker::blend_measured`]): long,
-    /// as the flow's noise (0.25 m/s per reading at 1.5 m) is far above the drone's changes of
-    /// velocity that the tilt does not show (`office`, seeds 1–5, median mean error: 0.33 m
-    /// at 5 s, 0.26 m at 10 s, 0.22 m at 20 s; `large` seed 1 0.73 m at 20 s).
-    pub flow_time_constant_s: f64,
+    /// Noise of the velocity filter's inputs: the tilt's acceleration, the optical flow
+    /// ([`velocity`]).
+    pub velocity: VelocityNoise,
     /// A scan match corrects the prediction only along directions in which the scan's
     /// information matrix has at least this eigenvalue (about that many points pinning the
     /// pose; [`degeneracy`]); 0 keeps every match whole. With a gyro the heading is the
@@ -134,8 +134,7 @@ impl Default for LayeredSlamConfig {
             align_new_layer: true,
             use_odometry: false,
             velocity_window_s: 1.0,
-            max_speed_mps: 0.3,
-            flow_time_constant_s: 10.0,
+            velocity: VelocityNoise::default(),
             min_constraint: 5.0,
             information_neighbours: 50,
             information_normal_radius_m: 0.15,
@@ -172,8 +171,6 @@ impl LayeredSlamConfig {
                 self.information_normal_radius_m,
                 self.information_normal_radius_m > 0.0,
             ),
-            non_negative("max_speed_mps", self.max_speed_mps),
-            non_negative("flow_time_constant_s", self.flow_time_constant_s),
             non_negative("gate_m", self.gate_m),
             non_negative("gate_growth_mps", self.gate_growth_mps),
             non_negative("gate_rad", self.gate_rad),
@@ -184,6 +181,7 @@ impl LayeredSlamConfig {
                 .field_checks()
                 .into_iter()
                 .chain(self.heading.field_checks())
+                .chain(self.velocity.field_checks())
                 .chain(checks),
             "out of range",
         )
@@ -275,6 +273,10 @@ pub struct LayerMap {
     pub keyframes: usize,
 }
 
+/// The filter updates worked out for one match: the heading's (with a gyro) and the
+/// position's, applied only to the match that is kept.
+type Updates = (Option<HeadingUpdate>, PositionUpdate);
+
 /// Layered ICP-SLAM; feed it scans in time order with [`LayeredIcpSlam::process`].
 pub struct LayeredIcpSlam {
     config: LayeredSlamConfig,
@@ -316,7 +318,7 @@ impl LayeredIcpSlam {
             last_odometry: None,
             last_gyro_yaw: None,
             heading: HeadingFilter::new(config.heading.clone()),
-            velocity: VelocityTracker::new(config.velocity_window_s, config.max_speed_mps),
+            velocity: VelocityTracker::new(config.velocity.clone(), config.velocity_window_s),
             last_match_s: None,
             keyframe_log: Vec::new(),
             last_relocalised_s: None,
@@ -339,8 +341,6 @@ impl LayeredIcpSlam {
             .update(vertical(input.up_m), vertical(input.down_m));
         let accel = tilt_acceleration(roll, pitch);
         let predicted = self.predict(input, &accel);
-        self.velocity
-            .record_acceleration(input.scan.timestamp, predicted.rotation * accel);
         let tilted = cos_tilt.acos() > self.config.max_tilt_rad;
         let (pose, status) = match height {
             None => {
@@ -398,11 +398,13 @@ impl LayeredIcpSlam {
             .filter(|v| v.iter().all(|c| c.is_finite()));
         let from = self.world_from_base;
         if let Some(v) = flow {
-            self.velocity
-                .blend_measured(&v, dt, self.config.flow_time_constant_s);
+            self.velocity.measure_flow(&v);
         }
         let predicted = match (self.last_odometry, odometry) {
-            (Some(prev), Some(cur)) => from * (prev.inverse() * cur),
+            (Some(prev), Some(cur)) => {
+                self.velocity.unknown_position();
+                from * (prev.inverse() * cur)
+            }
             _ => self.velocity.advance(&from, dt, accel, turn),
         };
         if odometry.is_some() {
@@ -451,10 +453,11 @@ impl LayeredIcpSlam {
         let matched = raw
             .world_from_base
             .and_then(|pose| self.accept(Some(pose), &predicted, &information, scan.timestamp));
-        let fixed = matched.or(aligned).map(|(pose, update)| {
-            if let Some(update) = update {
+        let fixed = matched.or(aligned).map(|(pose, (heading, position))| {
+            if let Some(update) = heading {
                 self.heading.apply(&update);
             }
+            self.velocity.apply(&position);
             pose
         });
         let matched = matched.map(|m| m.0);
@@ -571,21 +574,31 @@ impl LayeredIcpSlam {
         predicted: &Pose2,
         information: &Matrix3<f64>,
         t_s: f64,
-    ) -> Option<(Pose2, Option<HeadingUpdate>)> {
+    ) -> Option<(Pose2, Updates)> {
         let raw = raw?;
         if !self.within_gate(predicted, &raw, t_s) {
             return None;
         }
         let min = self.config.min_constraint;
-        if self.last_gyro_yaw.is_none() {
-            return Some((remap(predicted, &raw, information, min), None));
-        }
-        let eps = se2_log(&(predicted.inverse() * raw));
-        let update = self.heading.update(eps.z, information)?;
-        let t = translation_at_heading(&eps, information, update.heading_rad);
-        let kept = pinned_translation(&t, information, min);
-        let pose = predicted * se2_exp(&kept.push(update.heading_rad));
-        Some((pose, Some(update)))
+        let (t, heading) = if self.last_gyro_yaw.is_none() {
+            let kept = se2_log(&(predicted.inverse() * remap(predicted, &raw, information, min)));
+            (kept.xy(), (kept.z, None))
+        } else {
+            let eps = se2_log(&(predicted.inverse() * raw));
+            let update = self.heading.update(eps.z, information)?;
+            let t = translation_at_heading(&eps, information, update.heading_rad);
+            (t, (update.heading_rad, Some(update)))
+        };
+        let h = &self.config.heading;
+        let position = self.velocity.position_update(
+            &t,
+            information,
+            min,
+            h.scan_sigma_m,
+            h.max_innovation_sigma,
+        )?;
+        let pose = predicted * se2_exp(&position.translation.push(heading.0));
+        Some((pose, (heading.1, position)))
     }
 
     /// True when `pose` is within the gate around `predicted` at time `t_s`.

@@ -60,26 +60,6 @@ pub fn remap(
     predicted * se2_exp(&kept)
 }
 
-/// The translation `t` (body frame) kept along the directions in which the translation block
-/// of `information` (the scan's information on the position with the heading held) has an
-/// eigenvalue of at least `min_eigenvalue`, zero along the others.
-pub fn pinned_translation(
-    t: &Vector2<f64>,
-    information: &Matrix3<f64>,
-    min_eigenvalue: f64,
-) -> Vector2<f64> {
-    let eigen = information
-        .fixed_view::<2, 2>(0, 0)
-        .into_owned()
-        .symmetric_eigen();
-    eigen
-        .eigenvalues
-        .iter()
-        .zip(eigen.eigenvectors.column_iter())
-        .filter(|(value, _)| **value >= min_eigenvalue)
-        .fold(Vector2::zeros(), |acc, (_, v)| acc + v * v.dot(t))
-}
-
 /// The smallest eigenvalue of `information` (how well the worst direction is pinned).
 pub fn weakest(information: &Matrix3<f64>) -> f64 {
     information.symmetric_eigen().eigenvalues.min()
@@ -115,20 +95,5 @@ mod tests {
         assert!(weakest(&h) > 5.0);
         let kept = remap(&predicted, &matched, &h, 5.0);
         assert!((kept.translation.vector - matched.translation.vector).norm() < 1e-9);
-    }
-
-    #[test]
-    fn a_wall_across_the_view_keeps_the_shift_towards_it_and_drops_the_one_along_it() {
-        let wall: Vec<Point2<f64>> = (0..41)
-            .map(|i| Point2::new(1.0, -1.0 + 0.05 * f64::from(i)))
-            .collect();
-        let h = scan_information(&wall, &vec![Some(Vector2::new(-1.0, 0.0)); wall.len()]);
-        let kept = pinned_translation(&Vector2::new(0.03, 0.2), &h, 5.0);
-        assert!((kept - Vector2::new(0.03, 0.0)).norm() < 1e-9, "{kept}");
-        // nothing is kept when even the wall is below the threshold
-        assert_eq!(
-            pinned_translation(&Vector2::new(0.03, 0.2), &h, 100.0),
-            Vector2::zeros()
-        );
     }
 }
