@@ -56,8 +56,8 @@ fn check_bounds(report: &serde_json::Value, icp_mean_m: f64, pf_mean_m: f64) {
 
 /// The kidnapped-drone check (`metrics.layer_localisation`): the hypothesis whose particles
 /// spread least started in a layer within one of the true layer and ends within one of it
-/// (held on `small` seeds 1–5 and `large` seeds 1–4; `large` seed 5 ends two layers off and
-/// `office` starts up to two off, BENCHMARKS.md, "Where it stands (commit 37a8185)"). Its
+/// (held on seeds 1–5 of `small`, `large` and `office`, BENCHMARKS.md, "Where it stands
+/// (commit 5efc158)"). Its
 /// position is checked only where the room has no symmetry (`max_error_m`): in `small` the
 /// particles can settle on a quarter-turn image of the pose about the room's central pillar
 /// (3.2–3.6 m off in seeds 1, 3, 4, 5).
@@ -133,6 +133,6 @@ fn demo_large_within_the_seed_errors() {
     let Some(report) = demo("large", tempfile::tempdir().unwrap().path(), [0.29, 0.33]) else {
         return;
     };
-    // the error includes the layer map's own (layered ICP-SLAM's) error: 0.29 m in seed 1
+    // the error includes the layer map's own (layered ICP-SLAM's) error: 0.27 m in seed 1
     check_layer_choice(&report, Some(0.6));
 }
