@@ -91,7 +91,9 @@ pub struct LayeredSlamConfig {
     /// pose; [`degeneracy`]); 0 keeps every match whole. With a gyro the heading is the
     /// [`heading`] filter's and this applies to the position at that heading, which a
     /// pillar's arc pins across the line of sight with 5–15 points (`office` seeds 1–5 at
-    /// commit a98a719, median mean error: 0.13 m at 5, 0.32 m at 3, 0.54 m at 10, 0.32 m at 20).
+    /// commit a98a719, median mean error: 0.13 m at 5, 0.32 m at 3, 0.54 m at 10, 0.32 m at 20;
+    /// seeds 1–20 with the velocity filter of 5efc158: 0.175 m at 5, 0.185 m at 3, 0.235 m at
+    /// 10).
     pub min_constraint: f64,
     /// Normals for that information matrix are fitted to at most this many nearest points,
     /// within `information_normal_radius_m`.
@@ -252,7 +254,8 @@ pub struct LayeredStats {
     pub obstacle_edges: usize,
     /// Matched scans that left some direction unconstrained (kept from the prediction there).
     pub scans_degenerate: usize,
-    /// Matches rejected for moving the prediction farther than the gate.
+    /// Matches rejected: moving the prediction farther than the gate, or by more than the
+    /// heading and velocity filters find plausible.
     pub matches_rejected: usize,
     /// Poses moved onto old keyframes past the gate ([`mod@relocalise`]).
     pub relocalisations: usize,

@@ -57,7 +57,9 @@ pub struct RelocaliseConfig {
     /// Lowest ICP goodness (fraction of scan points on the map) of a match, in \[0, 1\].
     pub min_goodness: f64,
     /// The correction is kept along directions in which the scan's information matrix has at
-    /// least this eigenvalue; a scan whose strongest direction is below it is not used.
+    /// least this eigenvalue; a scan whose strongest direction is below it is not used
+    /// (`office` seeds 1–20 at commit 5efc158, ICP median of the mean errors: 0.175 m at 20,
+    /// 0.190 m at 10; 0.207 m with re-localisation off).
     pub min_constraint: f64,
     /// A scan point is on the old map when it is within this distance of a map point \[m\].
     pub overlap_distance_m: f64,
