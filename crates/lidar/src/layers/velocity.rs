@@ -255,9 +255,11 @@ impl VelocityTracker {
 
     /// The prediction came from the scans' odometry, whose error the filter does not model:
     /// the position is taken as unknown (uncorrelated with the velocity), so that the next
-    /// match is kept whole along the directions it pins.
+    /// match is kept whole along the directions it pins, and the flow's pending position
+    /// correction is dropped (the odometry moved the pose, not this filter).
     pub fn unknown_position(&mut self) {
         const UNKNOWN_M2: f64 = 1e6;
+        self.pending = Vector2::zeros();
         for i in 0..2 {
             for j in 0..4 {
                 self.covariance[(i, j)] = 0.0;
@@ -473,6 +475,21 @@ mod tests {
         // and the position followed: 120 s at 0.1 m/s at least, 0.15 m/s at most
         let moved = pose.translation.x - start.translation.x;
         assert!(moved > 12.0 && moved < 18.0, "{moved}");
+    }
+
+    #[test]
+    fn an_odometry_prediction_forgets_the_position_and_the_flows_pending_correction() {
+        let (mut tracker, pose) = flying(Vector2::new(0.1, 0.0));
+        tracker.measure_flow(&Vector2::new(0.5, 0.0));
+        tracker.unknown_position();
+        let still = tracker.advance(&pose, 0.0, &Vector2::zeros(), Some(0.0));
+        assert_eq!(still.translation.vector, pose.translation.vector);
+        // a match is kept whole along what it pins (x), nothing along y
+        let pins_x = Matrix3::from_diagonal(&Vector3::new(100.0, 0.0, 100.0));
+        let update = tracker
+            .position_update(&Vector2::new(0.3, 0.2), &pins_x, 5.0, 0.05, 3.0)
+            .unwrap();
+        assert!((update.translation - Vector2::new(0.3, 0.0)).norm() < 1e-6);
     }
 
     #[test]
