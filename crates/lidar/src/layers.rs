@@ -42,6 +42,7 @@
 pub mod degeneracy;
 pub mod heading;
 pub mod height;
+pub mod kalman;
 pub mod layer_map;
 pub mod layer_pf;
 pub mod relocalise;
@@ -52,7 +53,7 @@ use crate::error::check_fields;
 use crate::icp_slam::{IcpSlamConfig, ScanStatus};
 use crate::point_map::Keyframe;
 use crate::LidarError;
-use degeneracy::{remap, scan_information, weakest};
+use degeneracy::{pinned_twist, scan_information, weakest};
 use heading::{translation_at_heading, HeadingFilter, HeadingFilterConfig, HeadingUpdate};
 use height::{HeightConfig, HeightTracker};
 use layer_map::{LayerIcpMap, PreparedScan};
@@ -583,14 +584,14 @@ impl LayeredIcpSlam {
             return None;
         }
         let min = self.config.min_constraint;
-        let (t, heading) = if self.last_gyro_yaw.is_none() {
-            let kept = se2_log(&(predicted.inverse() * remap(predicted, &raw, information, min)));
-            (kept.xy(), (kept.z, None))
+        let eps = se2_log(&(predicted.inverse() * raw));
+        let (t, heading_rad, heading_update) = if self.last_gyro_yaw.is_none() {
+            let kept = pinned_twist(&eps, information, min);
+            (kept.xy(), kept.z, None)
         } else {
-            let eps = se2_log(&(predicted.inverse() * raw));
             let update = self.heading.update(eps.z, information)?;
             let t = translation_at_heading(&eps, information, update.heading_rad);
-            (t, (update.heading_rad, Some(update)))
+            (t, update.heading_rad, Some(update))
         };
         let h = &self.config.heading;
         let position = self.velocity.position_update(
@@ -600,8 +601,8 @@ impl LayeredIcpSlam {
             h.scan_sigma_m,
             h.max_innovation_sigma,
         )?;
-        let pose = predicted * se2_exp(&position.translation.push(heading.0));
-        Some((pose, (heading.1, position)))
+        let pose = predicted * se2_exp(&position.translation.push(heading_rad));
+        Some((pose, (heading_update, position)))
     }
 
     /// True when `pose` is within the gate around `predicted` at time `t_s`.

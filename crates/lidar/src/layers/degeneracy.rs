@@ -50,14 +50,24 @@ pub fn remap(
     min_eigenvalue: f64,
 ) -> Pose2 {
     let eps = se2_log(&(predicted.inverse() * matched));
+    predicted * se2_exp(&pinned_twist(&eps, information, min_eigenvalue))
+}
+
+/// The twist `eps` (a match's correction of the prediction, body frame) kept along every
+/// direction in which `information` has an eigenvalue of at least `min_eigenvalue`, zero
+/// along the others.
+pub fn pinned_twist(
+    eps: &Vector3<f64>,
+    information: &Matrix3<f64>,
+    min_eigenvalue: f64,
+) -> Vector3<f64> {
     let eigen = information.symmetric_eigen();
-    let kept = eigen
+    eigen
         .eigenvalues
         .iter()
         .zip(eigen.eigenvectors.column_iter())
         .filter(|(value, _)| **value >= min_eigenvalue)
-        .fold(Vector3::zeros(), |acc, (_, v)| acc + v * v.dot(&eps));
-    predicted * se2_exp(&kept)
+        .fold(Vector3::zeros(), |acc, (_, v)| acc + v * v.dot(eps))
 }
 
 /// The smallest eigenvalue of `information` (how well the worst direction is pinned).

@@ -24,6 +24,7 @@
 //! turns a pillar's arc into a position fix, and the bias, observed whenever walls pin the
 //! heading, keeps the gyro from turning the maps in between.
 
+use super::kalman::scalar_update;
 use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
 use serde::{Deserialize, Serialize};
 
@@ -158,17 +159,17 @@ impl HeadingFilter {
                 covariance: p,
             });
         }
-        let variance = p[(0, 0)] + 1.0 / pinned;
-        if innovation_rad.powi(2) > self.config.max_innovation_sigma.powi(2) * variance {
-            return None;
-        }
         // measurement of δθ with variance 1 / pinned
-        let gain = p.column(0) / variance;
-        let h = Vector2::new(1.0, 0.0);
-        let covariance = (Matrix2::identity() - gain * h.transpose()) * p;
+        let (correction, covariance) = scalar_update(
+            &p,
+            &Vector2::new(1.0, 0.0),
+            innovation_rad,
+            1.0 / pinned,
+            self.config.max_innovation_sigma,
+        )?;
         Some(HeadingUpdate {
-            heading_rad: gain.x * innovation_rad,
-            bias_radps: self.bias_radps + gain.y * innovation_rad,
+            heading_rad: correction.x,
+            bias_radps: self.bias_radps + correction.y,
             covariance,
         })
     }

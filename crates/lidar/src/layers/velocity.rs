@@ -41,6 +41,7 @@
 //! The turn rate, used without a gyro, is still the mean over the last `window_s` of matched
 //! headings.
 
+use super::kalman::scalar_update;
 use nalgebra::{Matrix2, Matrix2x4, Matrix3, Matrix4, Rotation2, Vector2, Vector3, Vector4};
 use serde::{Deserialize, Serialize};
 /// Standard gravity \[m/s²\].
@@ -318,14 +319,11 @@ impl VelocityTracker {
                 continue;
             }
             let h = Vector4::new(u.x, u.y, 0.0, 0.0);
-            let variance = (h.transpose() * p * h).x + sigma_m * sigma_m / lambda;
             let innovation = u.dot(t) - h.dot(&x);
-            if innovation.powi(2) > max_sigmas.powi(2) * variance {
-                return None;
-            }
-            let gain = p * h / variance;
-            x += gain * innovation;
-            p = (Matrix4::identity() - gain * h.transpose()) * p;
+            let (correction, after) =
+                scalar_update(&p, &h, innovation, sigma_m * sigma_m / lambda, max_sigmas)?;
+            x += correction;
+            p = after;
         }
         Some(PositionUpdate {
             translation: x.xy(),
