@@ -25,6 +25,11 @@
 //!   from, so that a new map starts where the old one ends and an old one is re-entered from
 //!   where the drone is (an addition to the seed method, which started new layers from the
 //!   odometry pose);
+//! * each scan that its layer's map fixed is also aligned to the oldest maps of the layers a
+//!   few centimetres above and below ([`mod@reference`]), a second measurement through the same
+//!   gates: walls and pillars are mostly full height, and a map made earlier holds less of the
+//!   heading drift that a map started seconds ago shares with the pose (an addition to the
+//!   seed method, whose layer maps are independent);
 //! * a match corrects the prior only along the directions the scan constrains ([`degeneracy`]:
 //!   one wall in range pins the distance to it, not the position along it; with the heading
 //!   held by the filter, a pillar's arc pins the position across the line of sight), weighed
@@ -45,6 +50,7 @@ pub mod height;
 pub mod kalman;
 pub mod layer_map;
 pub mod layer_pf;
+pub mod reference;
 pub mod relocalise;
 pub mod velocity;
 
@@ -58,6 +64,7 @@ use heading::{translation_at_heading, HeadingFilter, HeadingFilterConfig, Headin
 use height::{HeightConfig, HeightTracker};
 use layer_map::{LayerIcpMap, PreparedScan};
 use nalgebra::{Matrix3, Point3, Translation3, UnitQuaternion, Vector2};
+use reference::{reference_layers, ReferenceConfig};
 use relocalise::{partial_correction, relocalise, share, LoggedKeyframe, Query, RelocaliseConfig};
 use serde::{Deserialize, Serialize};
 use slamkit_core::{LaserScan, Pose2, Pose3, StageTimings};
@@ -117,6 +124,8 @@ pub struct LayeredSlamConfig {
     pub gate_rad: f64,
     /// Growth of the heading gate with the time since the last accepted match \[rad/s\].
     pub gate_growth_radps: f64,
+    /// Older maps of nearby layers as a second measurement of each fixed scan ([`mod@reference`]).
+    pub reference: ReferenceConfig,
     /// Re-localisation on old keyframes, past the gate ([`mod@relocalise`]).
     pub relocalise: RelocaliseConfig,
     /// Heading from the gyro and the scans, with the gyro's bias ([`heading`]); used when
@@ -145,6 +154,7 @@ impl Default for LayeredSlamConfig {
             gate_growth_mps: 0.1,
             gate_rad: 0.03,
             gate_growth_radps: 0.1,
+            reference: ReferenceConfig::default(),
             relocalise: RelocaliseConfig::default(),
             heading: HeadingFilterConfig::default(),
             slam: IcpSlamConfig {
@@ -185,6 +195,7 @@ impl LayeredSlamConfig {
                 .into_iter()
                 .chain(self.heading.field_checks())
                 .chain(self.velocity.field_checks())
+                .chain(self.reference.field_checks())
                 .chain(checks),
             "out of range",
         )
@@ -260,6 +271,8 @@ pub struct LayeredStats {
     pub matches_rejected: usize,
     /// Poses moved onto old keyframes past the gate ([`mod@relocalise`]).
     pub relocalisations: usize,
+    /// Fixed poses moved by an older map of a nearby layer ([`mod@reference`]).
+    pub reference_fixes: usize,
 }
 
 /// A layer's map in the world frame.
@@ -452,17 +465,14 @@ impl LayeredIcpSlam {
         let entry = self
             .layers
             .entry(layer)
-            .or_insert_with(|| LayerIcpMap::new(&self.config.slam));
+            .or_insert_with(|| LayerIcpMap::new(&self.config.slam, scan.timestamp));
         let raw = entry.match_scan(&prepared, &guess, &self.config.slam);
         let matched = raw
             .world_from_base
             .and_then(|pose| self.accept(Some(pose), &predicted, &information, scan.timestamp));
-        let fixed = matched.or(aligned).map(|(pose, (heading, position))| {
-            if let Some(update) = heading {
-                self.heading.apply(&update);
-            }
-            self.velocity.apply(&position);
-            pose
+        let fixed = matched.or(aligned).map(|(pose, updates)| {
+            self.apply(updates);
+            self.reference_fix(layer, &prepared, &information, pose, scan.timestamp)
         });
         let matched = matched.map(|m| m.0);
         if raw.world_from_base.is_some() && matched.is_none() {
@@ -520,6 +530,51 @@ impl LayeredIcpSlam {
             }
             None => (pose, status, fixed.is_some()),
         }
+    }
+
+    /// `pose`, which the layer's own map fixed, moved by an alignment to an older map of a
+    /// nearby layer ([`mod@reference`]): the first one that puts `min_goodness` of the scan on its
+    /// map is kept if it passes the gate and the filters' innovation gates, as a match does.
+    fn reference_fix(
+        &mut self,
+        layer: i64,
+        scan: &PreparedScan,
+        information: &Matrix3<f64>,
+        pose: Pose2,
+        t_s: f64,
+    ) -> Pose2 {
+        let c = &self.config.reference;
+        if !c.enabled {
+            return pose;
+        }
+        let created = self.layers.iter().map(|(&k, map)| (k, map.created_s()));
+        let references =
+            reference_layers(created, layer, t_s, self.config.height.layer_height_m, c);
+        let found = references.iter().find_map(|k| {
+            self.layers[k]
+                .refine(scan, &pose, &self.config.slam.icp)
+                .filter(|r| r.goodness >= c.min_goodness)
+        });
+        let Some(found) = found else {
+            return pose;
+        };
+        let information = information * found.goodness;
+        match self.accept(Some(found.target_from_source), &pose, &information, t_s) {
+            Some((moved, updates)) => {
+                self.apply(updates);
+                self.stats.reference_fixes += 1;
+                moved
+            }
+            None => pose,
+        }
+    }
+
+    /// Applies a kept match's filter updates.
+    fn apply(&mut self, (heading, position): Updates) {
+        if let Some(update) = heading {
+            self.heading.apply(&update);
+        }
+        self.velocity.apply(&position);
     }
 
     /// The scan's points with ICP's normals, and its information matrix

@@ -203,6 +203,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
             "switches": stats.layer_switches,
             "returns": stats.layer_returns,
             "relocalisations": stats.relocalisations,
+            "reference_fixes": stats.reference_fixes,
             "obstacle_edges": stats.obstacle_edges,
         },
         "wall_seconds": started.elapsed().as_secs_f64(),

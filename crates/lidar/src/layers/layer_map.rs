@@ -8,7 +8,7 @@
 //! [`IcpSlam`]: crate::icp_slam::IcpSlam
 
 use crate::correlative::correlative_match;
-use crate::icp::{align, IcpResult};
+use crate::icp::{align, IcpConfig, IcpResult};
 use crate::icp_slam::{IcpSlamConfig, ScanStatus};
 use crate::point_map::{Keyframe, KeyframeMap};
 use nalgebra::{Point2, Vector2};
@@ -37,17 +37,24 @@ pub struct LayerIcpMap {
     last_keyframe: Option<Pose2>,
     failures: usize,
     scans: usize,
+    created_s: f64,
 }
 
 impl LayerIcpMap {
-    /// An empty layer map.
-    pub fn new(config: &IcpSlamConfig) -> Self {
+    /// An empty layer map, created at time `created_s` \[s\].
+    pub fn new(config: &IcpSlamConfig, created_s: f64) -> Self {
         Self {
             map: KeyframeMap::new(config.map_voxel_m, config.map_keyframes),
             last_keyframe: None,
             failures: 0,
             scans: 0,
+            created_s,
         }
+    }
+
+    /// When the map was created \[s\].
+    pub fn created_s(&self) -> f64 {
+        self.created_s
     }
 
     /// The point map.
@@ -105,6 +112,15 @@ impl LayerIcpMap {
                 None => ScanStatus::MatchFailed,
             },
         }
+    }
+
+    /// ICP alone from `guess`, without the correlative fallback: the alignment with its
+    /// goodness, `None` on an empty map or when ICP fails.
+    pub fn refine(&self, scan: &PreparedScan, guess: &Pose2, icp: &IcpConfig) -> Option<IcpResult> {
+        if self.map.is_empty() {
+            return None;
+        }
+        align(&scan.points, self.map.index(), guess, icp).ok()
     }
 
     /// Moves the keyframes to new poses: `pose_of(i)` is the new pose of the `i`-th keyframe

@@ -169,7 +169,13 @@ fn bad_config_is_an_error() {
         let mut config = LayeredSlamConfig::default();
         config.relocalise.min_gain = bad;
         assert!(LayeredIcpSlam::new(config).is_err());
+        let mut config = LayeredSlamConfig::default();
+        config.reference.max_height_gap_m = bad;
+        assert!(LayeredIcpSlam::new(config).is_err());
     }
+    let mut config = LayeredSlamConfig::default();
+    config.reference.min_goodness = 1.5;
+    assert!(LayeredIcpSlam::new(config).is_err());
 }
 
 /// Heading error at the end of a turn in place beside a lone pillar, whose scans do not pin the
@@ -220,4 +226,51 @@ fn beside_a_pillar_the_heading_follows_the_gyro() {
         "{with_gyro} {with_position}"
     );
     assert!(without > 0.1, "{without}");
+}
+
+/// Heading error at the end of a flight that hovers in layer 6 for 5 s, jumps to layer 10 as
+/// its odometry turns by 0.02 rad (a new layer starts from the odometry: the layer alignment
+/// is off), and hovers there for 5 s more; with or without reference layers, and the number of
+/// reference fixes.
+fn climb_with_a_heading_slip(reference: bool) -> (f64, usize) {
+    let world = SegmentWorld::room();
+    let mut config = LayeredSlamConfig {
+        use_odometry: true,
+        align_new_layer: false,
+        ..LayeredSlamConfig::default()
+    };
+    config.reference.enabled = reference;
+    let mut slam = LayeredIcpSlam::new(config).unwrap();
+    let mut error = f64::NAN;
+    for k in 0..105 {
+        let t = 0.1 * f64::from(k);
+        let z = if k < 50 { 0.32 } else { 0.52 };
+        let truth = Pose2::new(Vector2::new(-1.0 + 0.01 * t, 0.5), 0.3);
+        let slip = if k < 50 { 0.0 } else { 0.02 };
+        let mut scan = world.scan(&truth, 360, 1.5 * std::f64::consts::PI, 8.0);
+        scan.timestamp = t;
+        scan.odometry = Some(truth * Pose2::new(Vector2::zeros(), slip));
+        let est = slam.process(&LayerInput {
+            scan: &scan,
+            up_m: Some(2.0 - z - 0.03),
+            down_m: Some(z - 0.03),
+            roll_rad: 0.0,
+            pitch_rad: 0.0,
+            gyro_yaw_rad: None,
+            flow_velocity_mps: None,
+        });
+        // the world frame is the first scan's pose, at the same heading
+        let (_, _, yaw) = est.world_from_base.rotation.euler_angles();
+        error = yaw.abs();
+    }
+    assert_eq!(slam.current_layer(), Some(10));
+    (error, slam.stats().reference_fixes)
+}
+
+#[test]
+fn an_older_layer_below_pulls_a_slipped_heading_back() {
+    let (with, fixes) = climb_with_a_heading_slip(true);
+    let (without, none) = climb_with_a_heading_slip(false);
+    assert!(with < 0.003 && fixes > 0, "{with} rad, {fixes} fixes");
+    assert!(without > 0.015 && none == 0, "{without} rad");
 }
