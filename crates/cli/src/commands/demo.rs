@@ -6,7 +6,8 @@
 //! each scan predicted from the drone's recent velocity, its tilt, its yaw-rate gyro (heading
 //! and gyro bias in a Kalman filter that the scans correct) and its downward optical-flow
 //! velocity sensor ([`slamkit_sim::flow`]), matches kept only along the directions the scan
-//! constrains), and particle-filter SLAM ([`slamkit_lidar::rbpf`]) on the
+//! constrains, each fixed scan matched again to the older maps of the layers within 0.2 m),
+//! and particle-filter SLAM ([`slamkit_lidar::rbpf`]) on the
 //! same scans in a single 2D map, its height taken from the layered tracker. Neither uses the
 //! scans' rotate–translate–rotate odometry: its per-scan yaw error exceeds 0.19 rad on 5 % of
 //! the `large` flight's scans. The particle filter takes its motion from the layered

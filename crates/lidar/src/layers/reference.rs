@@ -37,7 +37,8 @@ pub struct ReferenceConfig {
     /// 10 s with a 0.3 m gap).
     pub min_age_s: f64,
     /// At most this many references are tried, oldest map first (office median 0.159 m
-    /// with 1).
+    /// with 1; with all of them, never more than 5, 0.112 m but the worst seed 0.266 m against
+    /// 0.233 m at 3).
     pub max_tries: usize,
     /// Lowest ICP goodness (fraction of scan points on the reference map) of an alignment that
     /// counts, in \[0, 1\] (office median 0.166 m at 0.7).
