@@ -2,8 +2,8 @@
 //!
 //! A layer's map starts from the pose the mapper holds when the drone enters the layer, and
 //! every later scan of the layer agrees with it. While the drone climbs or descends slowly (a
-//! new 5 cm layer every 1–3 s on the `office` flight's sloping legs) the map a scan is matched
-//! to is a few seconds old and carries the pose's own heading error: the matches agree with
+//! new 5 cm layer every 0.25–2.5 s on the `office` flight's sloping legs) the map a scan is
+//! matched to is a few seconds old and carries the pose's own heading error: the matches agree with
 //! the gyro's prediction whatever its bias, the heading filter cannot see the bias, and each
 //! new map takes the error on. Traced on `office` at commit fcdac19, the heading error grew by
 //! −0.03 °/s on such legs and reached −2° to −6° by the end of most flights (the particle
@@ -37,8 +37,8 @@ pub struct ReferenceConfig {
     /// 10 s with a 0.3 m gap).
     pub min_age_s: f64,
     /// At most this many references are tried, oldest map first (office median 0.159 m
-    /// with 1; with all of them, never more than 5, 0.112 m but the worst seed 0.266 m against
-    /// 0.233 m at 3).
+    /// with 1; with all of them, at most 5 on these flights, 0.112 m but the worst seed
+    /// 0.266 m against 0.233 m at 3).
     pub max_tries: usize,
     /// Lowest ICP goodness (fraction of scan points on the reference map) of an alignment that
     /// counts, in \[0, 1\] (office median 0.166 m at 0.7).
