@@ -82,12 +82,12 @@ impl LayerIcpMap {
                 status: ScanStatus::Skipped,
             };
         }
-        let good = |r: Result<IcpResult, _>| {
-            r.ok()
+        let good = |from: &Pose2| {
+            self.refine(scan, from, &c.icp)
                 .filter(|r| r.goodness >= c.min_goodness)
                 .map(|r| r.target_from_source)
         };
-        if let Some(pose) = good(align(&scan.points, self.map.index(), guess, &c.icp)) {
+        if let Some(pose) = good(guess) {
             return RawMatch {
                 world_from_base: Some(pose),
                 status: ScanStatus::Matched,
@@ -97,14 +97,7 @@ impl LayerIcpMap {
             .correlative_fallback
             .then(|| correlative_match(&scan.points, self.map.points(), guess, &c.correlative))
             .and_then(Result::ok)
-            .and_then(|coarse| {
-                good(align(
-                    &scan.points,
-                    self.map.index(),
-                    &coarse.target_from_source,
-                    &c.icp,
-                ))
-            });
+            .and_then(|coarse| good(&coarse.target_from_source));
         RawMatch {
             world_from_base: recovered,
             status: match recovered {
