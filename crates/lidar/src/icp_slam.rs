@@ -201,7 +201,10 @@ pub struct IcpSlam {
     map: KeyframeMap,
     world_from_base: Pose2,
     last_motion: Pose2,
-    last_odometry: Option<Pose2>,
+    /// The newest odometry reading with the pose of the first scan that carried it.
+    odometry_anchor: Option<OdometryAnchor>,
+    /// The odometry reading of the scan being processed.
+    scan_odometry: Option<Pose2>,
     last_keyframe: Option<Pose2>,
     consecutive_failures: usize,
     /// Every keyframe, at its current (optimised) pose.
@@ -215,6 +218,13 @@ pub struct IcpSlam {
     timings: StageTimings,
 }
 
+/// An odometry reading and the pose of the first scan that carried it ([`IcpSlam::predict`]).
+#[derive(Debug, Clone, Copy)]
+struct OdometryAnchor {
+    odometry: Pose2,
+    world_from_base: Pose2,
+}
+
 impl IcpSlam {
     /// A mapper with an empty map, the world frame to be anchored at the first usable scan.
     pub fn new(config: IcpSlamConfig) -> Result<Self, LidarError> {
@@ -224,7 +234,8 @@ impl IcpSlam {
             config,
             world_from_base: Pose2::identity(),
             last_motion: Pose2::identity(),
-            last_odometry: None,
+            odometry_anchor: None,
+            scan_odometry: None,
             last_keyframe: None,
             consecutive_failures: 0,
             keyframes: Vec::new(),
@@ -268,21 +279,28 @@ impl IcpSlam {
         self.commit(pose, status, goodness, insert.then_some(points.as_slice()))
     }
 
-    /// The pose predicted for `scan`: the odometry increment since the previous scan when both
-    /// have odometry, the last motion otherwise.
+    /// The pose predicted for `scan`: where the odometry increment from the reading in the
+    /// odometry anchor to the scan's puts the anchor's pose, when the scan brings a new
+    /// reading; the last motion repeated otherwise.
+    ///
+    /// Why an anchor rather than the previous scan: a reading equal to the one before is
+    /// stale, not a standstill. On MIT CSAIL the odometry froze for four scans while the robot
+    /// turned 15° a scan, then jumped 85° at once; the scans had tracked that turn already, so
+    /// the jump, added to the previous scan's pose, put the guess 85° off and ICP settled on a
+    /// wrong fit (goodness 0.75) that bent the rest of the map. Measured from the pose of the
+    /// scan that first carried the old reading, the same jump is the right motion.
     fn predict(&mut self, scan: &LaserScan) -> Pose2 {
         let odometry = scan.odometry.filter(|_| self.config.use_odometry);
-        let motion = match (self.last_odometry, odometry) {
-            (Some(prev), Some(cur)) => prev.inverse() * cur,
-            _ => self.last_motion,
-        };
-        if odometry.is_some() {
-            self.last_odometry = odometry;
-        }
+        self.scan_odometry = odometry;
         if self.map.is_empty() {
             return self.world_from_base;
         }
-        self.world_from_base * motion
+        match (self.odometry_anchor, odometry) {
+            (Some(anchor), Some(now)) if now != anchor.odometry => {
+                anchor.world_from_base * (anchor.odometry.inverse() * now)
+            }
+            _ => self.world_from_base * self.last_motion,
+        }
     }
 
     /// Aligns `points` to the map from `guess`, falling back to the correlative search.
@@ -425,8 +443,13 @@ impl IcpSlam {
         self.map
             .relocate(|i| keyframes.get(i).map(|kf| kf.world_from_base));
         if let Some(newest) = self.keyframes.last().map(|kf| kf.world_from_base) {
-            // The current pose (the newest keyframe's) moves with the graph.
-            self.world_from_base = newest * (old_newest.inverse() * self.world_from_base);
+            // The current pose (the newest keyframe's) and the odometry anchor move with the
+            // graph.
+            let moved = |pose: Pose2| newest * (old_newest.inverse() * pose);
+            self.world_from_base = moved(self.world_from_base);
+            if let Some(anchor) = &mut self.odometry_anchor {
+                anchor.world_from_base = moved(anchor.world_from_base);
+            }
             self.last_keyframe = Some(newest);
         }
         self.timings.record_since("optimize", start);
@@ -448,6 +471,17 @@ impl IcpSlam {
         self.world_from_base = pose;
         if let Some(points) = insert {
             self.insert(points, &pose);
+        }
+        if let Some(odometry) = self.scan_odometry.take() {
+            if self
+                .odometry_anchor
+                .map_or(true, |a| a.odometry != odometry)
+            {
+                self.odometry_anchor = Some(OdometryAnchor {
+                    odometry,
+                    world_from_base: self.world_from_base,
+                });
+            }
         }
         let anchor = self.keyframes.len().checked_sub(1);
         let world_from_keyframe = anchor

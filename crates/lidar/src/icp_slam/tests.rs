@@ -166,6 +166,36 @@ fn a_wrong_odometry_jump_is_recovered_by_the_correlative_search() {
     assert!(dt > 0.1, "without fallback {dt}");
 }
 
+/// Odometry that freezes for a stretch (the same reading on twelve scans) and then jumps to
+/// the present reading, as MIT CSAIL's does during a fast turn: the scans track the motion
+/// the frozen readings miss, and the jump is the motion since the first frozen scan, not since
+/// the last one.
+#[test]
+fn odometry_that_freezes_and_catches_up_is_not_counted_twice() {
+    let (truth, mut scans) = drive(true);
+    let frozen = scans[99].odometry;
+    for s in &mut scans[100..112] {
+        s.odometry = frozen;
+    }
+    // A narrow ICP gate and no correlative search, so only a good guess gets the match: the
+    // room's walls would pull a wide ICP in from a metre off, a corridor's do not.
+    let narrow = IcpSlamConfig {
+        icp: IcpConfig {
+            max_correspondence_dist_m: 0.1,
+            ..IcpConfig::default()
+        },
+        correlative_fallback: false,
+        ..IcpSlamConfig::default()
+    };
+    let out = run_icp_slam(&scans, &narrow, |_| {}).unwrap();
+    let (dt, dr) = max_relative_error(&truth, &out.estimates);
+    assert!(
+        dt < 0.01 && dr < 0.3f64.to_radians(),
+        "relative error {dt} m {dr} rad"
+    );
+    assert_eq!(out.stats.matches_failed, 0);
+}
+
 #[test]
 fn invalid_config_is_rejected() {
     let config = IcpSlamConfig {
