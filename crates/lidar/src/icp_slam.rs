@@ -212,6 +212,10 @@ pub struct IcpSlam {
     graph: PoseGraph,
     /// Distance travelled since the last loop closure \[m\].
     open_distance_m: f64,
+    /// What the last loop-closure search found, to confirm the next one's weaker closures,
+    /// and which of those went into the graph.
+    last_found: Vec<loop_closure::Closure>,
+    last_kept: Vec<loop_closure::Closure>,
     /// Per scan: its keyframe (the newest at the time) and its pose relative to it.
     anchors: Vec<(Option<usize>, Pose2)>,
     stats: IcpSlamStats,
@@ -240,6 +244,8 @@ impl IcpSlam {
             consecutive_failures: 0,
             keyframes: Vec::new(),
             open_distance_m: 0.0,
+            last_found: Vec::new(),
+            last_kept: Vec::new(),
             graph: PoseGraph::new(),
             anchors: Vec::new(),
             stats: IcpSlamStats::default(),
@@ -409,11 +415,21 @@ impl IcpSlam {
     /// the keyframes, the local map and the current pose to the optimised poses.
     fn close_loops(&mut self) {
         let start = Instant::now();
-        let closures = loop_closure::find_closures(
+        let found = loop_closure::find_closures(
             &self.keyframes,
             self.open_distance_m,
             &self.config.loop_closure,
         );
+        let keyframes = &self.keyframes;
+        let closures = loop_closure::confirmed_closures(
+            &self.last_found,
+            &self.last_kept,
+            &found,
+            |i| keyframes.get(i).map(|kf| kf.world_from_base),
+            &self.config.loop_closure,
+        );
+        self.last_found = found;
+        self.last_kept.clone_from(&closures);
         self.timings.record_since("loop_search", start);
         if closures.is_empty() {
             return;

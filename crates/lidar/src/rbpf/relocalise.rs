@@ -194,7 +194,14 @@ pub(super) fn relocalise(
         if submap.len() < search.icp.min_correspondences {
             return None;
         }
-        let fine = match_submap(source, &submap, predicted, window, search)?;
+        let fine = match_submap(
+            source,
+            &submap,
+            predicted,
+            window,
+            search,
+            search.min_goodness,
+        )?;
         Some(fine.target_from_source)
     })
 }
