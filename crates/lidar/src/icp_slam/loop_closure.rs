@@ -327,8 +327,8 @@ pub fn match_submap(
 /// ACES, after 176 m without a closure, ten searches in a row (keyframes 686–704) found the
 /// right closure (1–9 cm and under 1.1° off the final trajectory) at goodness 0.6–0.79; a gate
 /// at 0.8 let through only the one that happened to score 0.800, and whether it did flipped
-/// with small changes of the maps (BENCHMARKS.md, "Loop closures confirmed by the next
-/// search"). A wrong closure rarely gives the same correction twice in a row.
+/// with small changes of the maps (BENCHMARKS.md, "Stale odometry and marginal loop
+/// closures"). A wrong closure rarely gives the same correction twice in a row.
 pub fn confirmed_closures(
     previous: &[Closure],
     kept: &[Closure],
