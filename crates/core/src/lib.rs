@@ -13,6 +13,8 @@
 //! * [`mod@ransac`]: adaptive RANSAC (Fischler & Bolles 1981) over any [`Estimator`].
 //! * [`camera`]: pinhole projection with Brown–Conrady distortion.
 //! * [`trajectory`]: timestamped poses with SE(3) interpolation; [`point_cloud`]: point sets.
+//! * [`observation`]: the timestamped [`Observation`] every source produces and every SLAM
+//!   session consumes.
 //!
 //! Nothing in this crate prints, reads files or exits the process.
 
@@ -20,6 +22,7 @@ pub mod absolute_orientation;
 pub mod camera;
 pub mod error;
 pub mod image;
+pub mod observation;
 pub mod point_cloud;
 pub mod pose;
 pub mod ransac;
@@ -33,6 +36,7 @@ mod test_support;
 pub use absolute_orientation::{horn, umeyama, SimilarityFit};
 pub use camera::{Distortion, Intrinsics, PinholeCamera};
 pub use error::GeometryError;
+pub use observation::Observation;
 pub use point_cloud::{BoundingBox, PointCloud};
 pub use pose::{Pose2, Pose3};
 pub use ransac::{

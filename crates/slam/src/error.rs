@@ -1,0 +1,18 @@
+//! Errors of the sessions and the map file.
+
+/// What can go wrong in a session or with a map file.
+#[derive(Debug, thiserror::Error)]
+pub enum SlamError {
+    /// The configuration is not usable.
+    #[error("configuration: {0}")]
+    Config(String),
+    /// The map does not suit the session (another rig, no keyframes).
+    #[error("map: {0}")]
+    Map(String),
+    /// A 2D lidar algorithm refused its input or configuration.
+    #[error(transparent)]
+    Lidar(#[from] slamkit_lidar::LidarError),
+    /// A map algorithm refused its input or configuration.
+    #[error(transparent)]
+    Grid(#[from] slamkit_map::MapError),
+}

@@ -1,0 +1,25 @@
+//! slamkit-slam: the systems. One online session per robot rig, usable from any program (the
+//! CLI, a ROS 2 node, a Python binding, a fleet process), and the map file that lets what a
+//! session learned outlive it.
+//!
+//! A session takes timestamped [`Observation`](slamkit_core::Observation)s one at a time and
+//! answers each with an [`Update`] (pose, tracking status, what changed in the map); it can
+//! [`save`](Session::save) its map as a `.skmap` file and be built again from one, to localise
+//! in it or to continue it. Sessions start from a given pose (identity by default) or from a
+//! loaded map; none ever reads ground truth.
+//!
+//! * [`session`]: the [`Session`] trait and [`Update`].
+//! * [`collator`]: restores time order when sources interleave.
+//! * [`map_file`]: the `.skmap` container: header, sections, checksum, atomic writes.
+//! * [`lidar`]: [`LidarSlam`], 2D lidar SLAM (ICP-SLAM or a particle filter) and localisation in
+//!   a saved map.
+//!
+//! Nothing in this crate prints, reads arguments or exits the process.
+
+pub mod collator;
+mod error;
+pub mod session;
+
+pub use collator::Collator;
+pub use error::SlamError;
+pub use session::{MapChange, Session, TrackingStatus, Update};
