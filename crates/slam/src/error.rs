@@ -6,6 +6,14 @@ pub enum SlamError {
     /// The configuration is not usable.
     #[error("configuration: {0}")]
     Config(String),
+    /// The map file could not be read or written.
+    #[error("map file {path}: {source}")]
+    MapFile {
+        /// The file.
+        path: std::path::PathBuf,
+        /// What was wrong.
+        source: crate::map_file::MapFileError,
+    },
     /// The map does not suit the session (another rig, no keyframes).
     #[error("map: {0}")]
     Map(String),

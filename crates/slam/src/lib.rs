@@ -18,6 +18,7 @@
 
 pub mod collator;
 mod error;
+pub mod map_file;
 pub mod session;
 
 pub use collator::Collator;
