@@ -10,6 +10,8 @@
 //! * [`correlative`]: exhaustive correlative scan matching with a two-level branch and bound
 //!   (Olson, "Real-time correlative scan matching", ICRA 2009; Hess et al., ICRA 2016) for poor
 //!   initial guesses.
+//! * [`global_search`]: global localisation in a keyframe map with no prior pose: coarse
+//!   correlative searches around anchors, refined by ICP, accepted only when unambiguous.
 //! * [`icp_slam`]: the incremental map builder of MRPT's icp-slam: each scan is matched against a
 //!   point map of keyframes, and inserted into it when the robot has moved far enough.
 //!
@@ -18,6 +20,7 @@
 pub mod cloud;
 pub mod correlative;
 mod error;
+pub mod global_search;
 pub mod icp;
 pub mod icp_slam;
 pub mod layers;
