@@ -316,7 +316,10 @@ mod tests {
         let keyframes: Vec<Keyframe> = (0..12)
             .map(|i| {
                 let x = -5.0 + i as f64;
-                keyframe(&world, Pose2::new(Vector2::new(x, -2.5 + 0.3 * i as f64), 0.0))
+                keyframe(
+                    &world,
+                    Pose2::new(Vector2::new(x, -2.5 + 0.3 * i as f64), 0.0),
+                )
             })
             .collect();
         let search = GlobalSearch::new(&keyframes, GlobalSearchConfig::default()).unwrap();
@@ -345,7 +348,10 @@ mod tests {
             20.0,
         );
         let outcome = search.search(&scan_points(&scan, 0.1, 20.0));
-        assert!(matches!(outcome, GlobalOutcome::Ambiguous { .. }), "{outcome:?}");
+        assert!(
+            matches!(outcome, GlobalOutcome::Ambiguous { .. }),
+            "{outcome:?}"
+        );
         // a corridor seen from elsewhere does not fit the room
         let corridor = SegmentWorld {
             segments: vec![

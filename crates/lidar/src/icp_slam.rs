@@ -24,7 +24,7 @@ use crate::pose_graph::{Edge, PoseGraph};
 use crate::LidarError;
 pub use broken_scans::{BrokenScan, BrokenScanCounts};
 pub use loop_closure::LoopClosureConfig;
-use nalgebra::{Matrix3, Point2, Vector3};
+use nalgebra::{Matrix3, Point2};
 use serde::{Deserialize, Serialize};
 use slamkit_core::pose::pose2_to_pose3;
 use slamkit_core::{LaserScan, Pose2, StageTimings, Trajectory};
@@ -102,6 +102,28 @@ impl Default for IcpSlamConfig {
 }
 
 impl IcpSlamConfig {
+    /// A keyframe of `points` (base frame) at `world_from_base`, with the normals this
+    /// configuration estimates.
+    pub fn keyframe(&self, points: Vec<Point2<f64>>, world_from_base: Pose2) -> Keyframe {
+        let normals = estimate_normals(
+            &points,
+            self.normal_neighbours,
+            self.normal_radius_m,
+            self.normal_max_flatness,
+        );
+        Keyframe {
+            world_from_base,
+            points,
+            normals,
+        }
+    }
+
+    /// The points of `scan` a keyframe or a match uses (base frame): beams within the range
+    /// limits.
+    pub fn scan_points(&self, scan: &LaserScan) -> Vec<Point2<f64>> {
+        scan_points(scan, self.min_range_m, self.max_range_m)
+    }
+
     /// Checks every field's range.
     pub fn validate(&self) -> Result<(), LidarError> {
         self.icp.validate()?;
@@ -260,6 +282,14 @@ impl IcpSlam {
         })
     }
 
+    /// A mapper with an empty map whose first scan is at `world_from_base` (the map frame's
+    /// origin is where the robot starts when this is the identity).
+    pub fn starting_at(config: IcpSlamConfig, world_from_base: Pose2) -> Result<Self, LidarError> {
+        let mut slam = Self::new(config)?;
+        slam.world_from_base = world_from_base;
+        Ok(slam)
+    }
+
     /// A mapper that continues a saved map: `keyframes` are its nodes in order (with normals)
     /// and `edges` its pose graph; the robot is at `world_from_base`, found in that map (by
     /// global localisation: this does not search). The scans that follow are matched to the
@@ -293,8 +323,10 @@ impl IcpSlam {
             .take(slam.config.map_keyframes.max(1))
             .collect();
         near.sort_unstable();
-        slam.map
-            .extend_with_ids(near.iter().filter_map(|&i| Some((i, keyframes.get(i)?.clone()))));
+        slam.map.extend_with_ids(
+            near.iter()
+                .filter_map(|&i| Some((i, keyframes.get(i)?.clone()))),
+        );
         slam.chain_from = by_distance.first().copied();
         slam.keyframes = keyframes;
         slam.world_from_base = world_from_base;
@@ -437,18 +469,7 @@ impl IcpSlam {
 
     fn insert(&mut self, points: &[Point2<f64>], pose: &Pose2) {
         let start = Instant::now();
-        let c = &self.config;
-        let normals = estimate_normals(
-            points,
-            c.normal_neighbours,
-            c.normal_radius_m,
-            c.normal_max_flatness,
-        );
-        let keyframe = Keyframe {
-            world_from_base: *pose,
-            points: points.to_vec(),
-            normals,
-        };
+        let keyframe = self.config.keyframe(points.to_vec(), *pose);
         self.map.insert(keyframe.clone());
         let node = self.graph.add_node(*pose);
         let from = self.chain_from.take().or(node.checked_sub(1));
@@ -475,9 +496,7 @@ impl IcpSlam {
     }
 
     fn edge_information(&self) -> Matrix3<f64> {
-        let lc = &self.config.loop_closure;
-        let (t, r) = (lc.edge_sigma_m.powi(-2), lc.edge_sigma_rad.powi(-2));
-        Matrix3::from_diagonal(&Vector3::new(t, t, r))
+        self.config.loop_closure.edge_information()
     }
 
     /// Searches loop closures for the newest keyframe; on success optimises the graph and moves
@@ -608,6 +627,11 @@ impl IcpSlam {
     /// The pose graph: one node per keyframe, in order.
     pub fn graph(&self) -> &PoseGraph {
         &self.graph
+    }
+
+    /// Scans in a row whose match failed, up to now.
+    pub fn failures_in_a_row(&self) -> usize {
+        self.consecutive_failures
     }
 
     /// The estimate of the robot's current pose.

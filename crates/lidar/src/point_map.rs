@@ -68,7 +68,12 @@ impl KeyframeMap {
     /// Adds keyframes in order and re-indexes the map once.
     pub fn extend(&mut self, keyframes: impl IntoIterator<Item = Keyframe>) {
         let first = self.keyframes_inserted;
-        self.extend_with_ids(keyframes.into_iter().enumerate().map(|(i, kf)| (first + i, kf)));
+        self.extend_with_ids(
+            keyframes
+                .into_iter()
+                .enumerate()
+                .map(|(i, kf)| (first + i, kf)),
+        );
     }
 
     /// Adds `keyframe` known as `id` (what [`KeyframeMap::relocate`] asks new poses for), e.g.

@@ -18,9 +18,11 @@
 
 pub mod collator;
 mod error;
+pub mod lidar;
 pub mod map_file;
 pub mod session;
 
 pub use collator::Collator;
 pub use error::SlamError;
+pub use lidar::{LidarMap, LidarMethod, LidarSlam, LidarSlamConfig};
 pub use session::{MapChange, Session, TrackingStatus, Update};
