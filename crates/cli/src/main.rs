@@ -25,8 +25,11 @@ enum Command {
     Demo(commands::demo::DemoArgs),
     /// Visual odometry on an RGB-D or stereo dataset folder.
     Vo(commands::vo::VoArgs),
-    /// 2D lidar SLAM (ICP or particle filter) or localisation on a CARMEN log.
+    /// 2D lidar SLAM (ICP or particle filter), or localisation in / continuation of a saved
+    /// map, on a CARMEN log.
     Lidar(commands::lidar::LidarArgs),
+    /// Inspect and export saved maps (`.skmap`).
+    Map(commands::map::MapArgs),
     /// Accuracy of a trajectory against ground truth: ATE, RPE, relations metric.
     Eval(commands::eval::EvalArgs),
     /// Plan a path on an occupancy grid map.
@@ -43,6 +46,7 @@ fn main() -> ExitCode {
         Command::Demo(args) => commands::demo::run(args),
         Command::Vo(args) => commands::vo::run(args),
         Command::Lidar(args) => commands::lidar::run(args),
+        Command::Map(args) => commands::map::run(args),
         Command::Eval(args) => commands::eval::run(args),
         Command::Plan(args) => commands::plan::run(args),
         Command::Sim(args) => commands::sim::run(args),

@@ -16,6 +16,7 @@
 //!   [`mrpt_text`] (text dumps of MRPT rawlogs and ground-truth files).
 //! * [`relations`]: ground-truth relations of the 2D SLAM benchmark (`*.relations`,
 //!   Kümmerle et al. 2009).
+//! * [`ply`]: point clouds as PLY for any viewer.
 //! * [`error`]: [`IoError`], every variant naming the file, and the line or frame.
 
 pub mod carmen;
@@ -28,6 +29,7 @@ pub mod image_writer;
 pub mod kitti;
 pub mod kitti_writer;
 pub mod mrpt_text;
+pub mod ply;
 pub mod redwood;
 pub mod relations;
 pub mod seven_scenes;

@@ -189,6 +189,8 @@ struct ParticleRun {
 
 struct InMap {
     map: LidarMap,
+    /// The map's keyframes as the matchers use them (points and normals), computed once.
+    keyframes: Vec<slamkit_lidar::point_map::Keyframe>,
     search: GlobalSearch,
     /// Continue mapping once found, rather than localise.
     extend: bool,
@@ -239,6 +241,7 @@ impl LidarSlam {
         let search = GlobalSearch::new(&keyframes, config.global_search.clone())?;
         let mode = Mode::InMap(Box::new(InMap {
             map,
+            keyframes,
             search,
             extend,
             tracker: None,
@@ -625,7 +628,7 @@ impl InMap {
         };
         stats.fixes += 1;
         stats.first_fix_scan.get_or_insert(index);
-        let keyframes = self.map.matcher_keyframes(&config.icp);
+        let keyframes = self.keyframes.clone();
         let tracker = if self.extend {
             let edges = self.map.edges.clone();
             IcpSlam::resume(config.icp.clone(), keyframes, edges, fix.world_from_base)

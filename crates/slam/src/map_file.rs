@@ -289,6 +289,19 @@ impl MapFile {
     }
 }
 
+/// The format version a map file's bytes declare, when they start with the magic bytes.
+pub fn peek_version(bytes: &[u8]) -> Option<(u16, u16)> {
+    let head = bytes.get(..MAGIC.len() + 4)?;
+    if head[..MAGIC.len()] != MAGIC {
+        return None;
+    }
+    let v = &head[MAGIC.len()..];
+    Some((
+        u16::from_le_bytes([v[0], v[1]]),
+        u16::from_le_bytes([v[2], v[3]]),
+    ))
+}
+
 /// Writes `bytes` to `path` through a temporary file in the same folder and a rename, so
 /// readers see the old file or the whole new one.
 pub fn write_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {

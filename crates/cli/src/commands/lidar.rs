@@ -90,6 +90,7 @@ pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
         );
         Ok(map)
     };
+    let session_started = Instant::now();
     let (mut session, what) = match (&args.localize, &args.continue_map) {
         (Some(path), _) => (LidarSlam::localise(config, load(path)?)?, "localise"),
         (None, Some(path)) => (LidarSlam::resume(config, load(path)?)?, "continue"),
@@ -106,6 +107,7 @@ pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
         session.push_scan(scan.clone());
         bar.inc(1);
     }
+    let session_seconds = session_started.elapsed().as_secs_f64();
     bar.finish_and_clear();
 
     let trajectory = session.trajectory();
@@ -145,6 +147,7 @@ pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
         "session": session.stats(),
         "stats": session.method_stats(),
         "wall_seconds": started.elapsed().as_secs_f64(),
+        "session_seconds": session_seconds,
         "timings_ms": timings_json(&session.timings()),
         "peak_rss_bytes": peak_rss_bytes(),
         "metrics": relations_metrics(args, &trajectory)?,

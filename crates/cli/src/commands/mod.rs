@@ -4,6 +4,7 @@ pub mod demo;
 pub mod eval;
 pub mod lidar;
 pub mod lidar_mcl;
+pub mod map;
 pub mod nav;
 pub mod plan;
 pub mod sim;

@@ -2,9 +2,9 @@
 //! graph that joins them.
 //!
 //! Sections (see [`crate::map_file`] for the container):
-//! * `KEYF`: per keyframe, its time, `map_from_base` (x, y, θ), `base_from_laser`, the scan's
-//!   first bearing, bearing step and maximum range, and its ranges in whole millimetres
-//!   (`u32`; `u32::MAX` for a reading that was not a number or negative). Ranges, not points:
+//! * `KEYF`: per keyframe, its time, `map_from_base` (x, y, cos θ, sin θ: every pose in the
+//!   file is stored so), `base_from_laser`, the scan's first bearing, bearing step and maximum
+//!   range, and its ranges in whole millimetres (`u32`; `u32::MAX` for a reading that was not a number or negative). Ranges, not points:
 //!   the grid's free space, the no-return beams and the points any configuration needs are
 //!   all rebuilt from them, and four bytes a beam compress to about two.
 //! * `EDGE`: pose-graph edges (`from`, `to`, the measured relative pose, the upper triangle of
@@ -157,7 +157,7 @@ impl LidarMap {
     pub fn from_file(file: &MapFile) -> Result<Self, MapFileError> {
         file.expect_rig(Rig::Lidar2d)?;
         let mut r = Reader::new(file.section(&KEYFRAMES)?, "the KEYF section");
-        let n = r.len(9 * 8 + 4)?;
+        let n = r.len(11 * 8 + 4)?;
         let mut keyframes = Vec::with_capacity(n);
         for _ in 0..n {
             let timestamp = r.f64()?;
@@ -185,7 +185,7 @@ impl LidarMap {
         }
         r.finish()?;
         let mut r = Reader::new(file.section(&EDGES)?, "the EDGE section");
-        let n = r.len(2 * 4 + 9 * 8 + 1)?;
+        let n = r.len(2 * 4 + 10 * 8 + 1)?;
         let mut edges = Vec::with_capacity(n);
         for _ in 0..n {
             let from = r.u32()? as usize;
@@ -222,7 +222,7 @@ impl LidarMap {
         }
         r.finish()?;
         let mut r = Reader::new(file.section(&SCANS)?, "the SCAN section");
-        let n = r.len(8 + 4 + 3 * 8)?;
+        let n = r.len(8 + 4 + 4 * 8)?;
         let mut scans = Vec::with_capacity(n);
         for _ in 0..n {
             let timestamp = r.f64()?;
@@ -306,15 +306,34 @@ impl LidarMap {
 /// The upper triangle of a 3 × 3 matrix, row by row.
 const UPPER: [(usize, usize); 6] = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)];
 
+/// Writes a pose as `x, y, cos θ, sin θ`: the rotation's own numbers, so a map read back and
+/// written again gives the same bytes (an angle would go through `atan2` and `sin`/`cos`,
+/// which need not return the last bit). A rotation that drifted off unit length in memory
+/// (products of many rotations) is brought back to it.
 fn put_pose(w: &mut Writer, pose: &Pose2) {
+    let (mut c, mut s) = (pose.rotation.re, pose.rotation.im);
+    let norm2 = c * c + s * s;
+    if (norm2 - 1.0).abs() > 1e-12 {
+        let norm = norm2.sqrt();
+        (c, s) = (c / norm, s / norm);
+    }
     w.f64(pose.translation.vector.x);
     w.f64(pose.translation.vector.y);
-    w.f64(pose.rotation.angle());
+    w.f64(c);
+    w.f64(s);
 }
 
 fn get_pose(r: &mut Reader<'_>) -> Result<Pose2, MapFileError> {
-    let (x, y, theta) = (r.f64()?, r.f64()?, r.f64()?);
-    Ok(Pose2::new(Vector2::new(x, y), theta))
+    let (x, y, c, s) = (r.f64()?, r.f64()?, r.f64()?, r.f64()?);
+    if ((c * c + s * s) - 1.0).abs() > 1e-9 {
+        return Err(MapFileError::Malformed(format!(
+            "a rotation ({c}, {s}) is not of unit length"
+        )));
+    }
+    Ok(Pose2::from_parts(
+        nalgebra::Translation2::new(x, y),
+        nalgebra::UnitComplex::from_cos_sin_unchecked(c, s),
+    ))
 }
 
 /// A range in whole millimetres, or [`INVALID_RANGE`].

@@ -1,0 +1,153 @@
+//! `slamkit map info|export`: what a `.skmap` file holds, and its contents as files any tool
+//! opens.
+
+use crate::output::prepare_out_dir;
+use anyhow::Context;
+use nalgebra::Point3;
+use serde_json::json;
+use slamkit_map::{save_map_yaml, save_png, OccupancyGridConfig};
+use slamkit_slam::lidar::LidarMap;
+use slamkit_slam::map_file::{peek_version, MapFile, Rig};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Arguments of `slamkit map`.
+#[derive(Debug, clap::Args)]
+pub struct MapArgs {
+    #[command(subcommand)]
+    command: MapCommand,
+}
+
+#[derive(Debug, clap::Subcommand)]
+enum MapCommand {
+    /// Print a map file's version, rig, keyframes, extent and size.
+    Info {
+        /// The `.skmap` file.
+        file: PathBuf,
+        /// Print one JSON object instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Write a map file's contents as map.pgm/.yaml/.png (occupancy grid), cloud.ply and
+    /// trajectory.tum (every scan of the runs that built it).
+    Export {
+        /// The `.skmap` file.
+        file: PathBuf,
+        /// Output folder.
+        #[arg(long)]
+        out: PathBuf,
+    },
+}
+
+/// Runs `slamkit map`.
+pub fn run(args: &MapArgs) -> anyhow::Result<()> {
+    match &args.command {
+        MapCommand::Info { file, json } => info(file, *json),
+        MapCommand::Export { file, out } => export(file, out),
+    }
+}
+
+fn load(file: &Path) -> anyhow::Result<(MapFile, u64, f64, (u16, u16))> {
+    let started = Instant::now();
+    let bytes = std::fs::read(file).with_context(|| format!("reading {}", file.display()))?;
+    let map =
+        MapFile::from_bytes(&bytes).with_context(|| format!("map file {}", file.display()))?;
+    let seconds = started.elapsed().as_secs_f64();
+    let version = peek_version(&bytes).unwrap_or_default();
+    Ok((map, bytes.len() as u64, seconds, version))
+}
+
+fn info(file: &Path, as_json: bool) -> anyhow::Result<()> {
+    let (map, bytes, seconds, version) = load(file)?;
+    let h = &map.header;
+    let lidar = match h.rig {
+        Rig::Lidar2d => Some(LidarMap::from_file(&map)?),
+        _ => None,
+    };
+    let sections: Vec<serde_json::Value> = map
+        .sections
+        .iter()
+        .map(|s| json!({"tag": String::from_utf8_lossy(&s.tag), "bytes": s.data.len()}))
+        .collect();
+    let report = json!({
+        "file": file,
+        "format_version": format!("{}.{}", version.0, version.1),
+        "rig": h.rig,
+        "slamkit_version": h.slamkit_version,
+        "created_unix_s": h.created_unix_s,
+        "keyframes": h.keyframes,
+        "edges": lidar.as_ref().map(|m| m.edges.len()),
+        "scans": lidar.as_ref().map(|m| m.scans.len()),
+        "extent_m": h.extent_m,
+        "units": h.units,
+        "frames": h.frames,
+        "notes": h.notes,
+        "file_bytes": bytes,
+        "load_seconds": seconds,
+        "sections": sections,
+    });
+    if as_json {
+        println!("{report}");
+        return Ok(());
+    }
+    println!("{}", file.display());
+    println!(
+        "  format      {}.{} (slamkit {})",
+        version.0, version.1, h.slamkit_version
+    );
+    println!("  rig         {}", h.rig);
+    println!("  created     {} s after 1970-01-01 UTC", h.created_unix_s);
+    println!("  keyframes   {}", h.keyframes);
+    if let Some(m) = &lidar {
+        println!("  edges       {}", m.edges.len());
+        println!("  scans       {}", m.scans.len());
+    }
+    if let Some([x0, y0, x1, y1]) = h.extent_m {
+        println!(
+            "  extent      x {x0:.2} .. {x1:.2} m, y {y0:.2} .. {y1:.2} m ({:.1} × {:.1} m)",
+            x1 - x0,
+            y1 - y0
+        );
+    }
+    println!("  size        {:.2} MB", bytes as f64 / 1e6);
+    println!("  loaded in   {:.3} s", seconds);
+    Ok(())
+}
+
+fn export(file: &Path, out: &Path) -> anyhow::Result<()> {
+    let (map, _, _, _) = load(file)?;
+    let out = prepare_out_dir(out)?;
+    match map.header.rig {
+        Rig::Lidar2d => {
+            let lidar = LidarMap::from_file(&map)?;
+            let grid = lidar.grid(OccupancyGridConfig::default())?;
+            save_map_yaml(&grid, &out.join("map.yaml"))?;
+            save_png(&grid, &out.join("map.png"))?;
+            let cloud: Vec<Point3<f64>> = lidar
+                .keyframes
+                .iter()
+                .flat_map(|kf| {
+                    let world_from_laser = kf.world_from_base * kf.scan.base_from_laser;
+                    kf.scan
+                        .hit_points()
+                        .into_iter()
+                        .map(move |p| world_from_laser * p)
+                })
+                .map(|p| Point3::new(p.x, p.y, 0.0))
+                .collect();
+            let comment = format!("slamkit map export of {}", file.display());
+            slamkit_io::ply::write_ply(&out.join("cloud.ply"), &cloud, &comment)?;
+            slamkit_io::trajectory_file::write_tum(
+                &out.join("trajectory.tum"),
+                &lidar.trajectory(),
+            )?;
+            println!(
+                "map.pgm, map.yaml, map.png, cloud.ply ({} points), trajectory.tum in {}",
+                cloud.len(),
+                out.display()
+            );
+        }
+        rig => anyhow::bail!("exporting {rig} maps is not supported yet"),
+    }
+    Ok(())
+}
