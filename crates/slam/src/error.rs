@@ -23,4 +23,10 @@ pub enum SlamError {
     /// A map algorithm refused its input or configuration.
     #[error(transparent)]
     Grid(#[from] slamkit_map::MapError),
+    /// Visual odometry refused its configuration.
+    #[error(transparent)]
+    Vo(#[from] slamkit_vo::VoError),
+    /// A worker thread could not start, or died.
+    #[error("thread: {0}")]
+    Thread(String),
 }

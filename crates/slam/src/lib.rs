@@ -13,6 +13,8 @@
 //! * [`map_file`]: the `.skmap` container: header, sections, checksum, atomic writes.
 //! * [`lidar`]: [`LidarSlam`], 2D lidar SLAM (ICP-SLAM or a particle filter) and localisation in
 //!   a saved map.
+//! * [`visual`]: [`VisualSlam`], visual odometry of an RGB-D or stereo camera as a session, and
+//!   [`visual::run`], which overlaps decoding and frame preparation with tracking.
 //!
 //! Nothing in this crate prints, reads arguments or exits the process.
 
@@ -20,7 +22,9 @@ pub mod collator;
 mod error;
 pub mod map_file;
 pub mod session;
+pub mod visual;
 
 pub use collator::Collator;
 pub use error::SlamError;
 pub use session::{MapChange, Session, TrackingStatus, Update};
+pub use visual::VisualSlam;
