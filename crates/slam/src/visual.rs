@@ -48,23 +48,23 @@ use prepare::Prepared;
 /// use slamkit_vo::frame::Rig;
 /// use slamkit_vo::VoConfig;
 ///
-/// // a 64×48 camera looking at a textured wall 2 m away
-/// let k = Intrinsics::from_array([60.0, 60.0, 31.5, 23.5], 64, 48);
+/// // a 160×120 camera looking at a checkerboard wall 2 m away
+/// let k = Intrinsics::from_array([150.0, 150.0, 79.5, 59.5], 160, 120);
 /// let rig = Rig::Rgbd { color: k, depth: k };
 /// let mut session = VisualSlam::new(&VoConfig::default(), rig)?.with_point_map(PointMapping::Off)?;
-/// let texture: Vec<[u8; 3]> = (0..64 * 48usize).map(|i| [((i * 7919) % 251) as u8; 3]).collect();
+/// let checker = |i: usize| if (i % 160 / 10 + i / 160 / 10) % 2 == 0 { 40 } else { 210 };
+/// let texture: Vec<[u8; 3]> = (0..160 * 120).map(|i| [checker(i); 3]).collect();
 /// for i in 0..3 {
-///     let color = RgbImage::from_vec(64, 48, texture.clone()).expect("64×48 pixels");
-///     let depth_m = Image::filled(64, 48, 2.0f32);
+///     let color = RgbImage::from_vec(160, 120, texture.clone()).expect("160×120 pixels");
+///     let depth_m = Image::filled(160, 120, 2.0f32);
 ///     let frame = RgbdFrame { timestamp: i as f64 / 30.0, color, depth_m };
 ///     let update = session.push(Observation::Rgbd(frame)).expect("a camera frame");
 ///     // the camera did not move: the pose stays at the start (identity)
-///     if update.status == TrackingStatus::Tracking {
-///         let pose = update.pose.expect("a pose");
-///         assert!(pose.translation.vector.norm() < 1e-3);
-///     }
+///     assert_eq!(update.status, TrackingStatus::Tracking);
+///     assert!(update.pose.expect("a pose").translation.vector.norm() < 1e-3);
 /// }
-/// assert_eq!(session.stats().frames, 3);
+/// let stats = session.stats();
+/// assert_eq!((stats.frames, stats.processed, stats.initialisations), (3, 3, 1));
 /// # Ok::<(), slamkit_slam::SlamError>(())
 /// ```
 #[derive(Debug)]
