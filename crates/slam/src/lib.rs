@@ -15,16 +15,20 @@
 //!   a saved map.
 //! * [`visual`]: [`VisualSlam`], visual odometry of an RGB-D or stereo camera as a session, and
 //!   [`visual::run`], which overlaps decoding and frame preparation with tracking.
+//! * [`ground_robot`]: [`GroundRobotNav`], a ground robot's camera session, floor grid, planner
+//!   and path tracker; its closed loop in the simulator.
 //!
 //! Nothing in this crate prints, reads arguments or exits the process.
 
 pub mod collator;
 mod error;
+pub mod ground_robot;
 pub mod map_file;
 pub mod session;
 pub mod visual;
 
 pub use collator::Collator;
 pub use error::SlamError;
+pub use ground_robot::GroundRobotNav;
 pub use session::{MapChange, Session, TrackingStatus, Update};
 pub use visual::VisualSlam;
