@@ -18,10 +18,12 @@
 //! metres), [`VoConfig::frontend`] and, for a colour camera whose depth is not registered to it,
 //! [`VoConfig::register_depth`]; the rest of [`VoConfig`] is advanced.
 
+pub mod keyframes;
 pub mod pipeline;
 pub mod point_map;
 mod prepare;
 
+pub use keyframes::{Keyframe, VisualMap};
 pub use pipeline::{run, FrameRecord, RunOptions, RunStats, VisualRun};
 pub use point_map::PointMapping;
 pub use prepare::{FramePreparer, PreparedObservation};
@@ -30,9 +32,11 @@ use cpu_time::ThreadTime;
 use slamkit_core::{Observation, Pose3, StageTimings};
 use slamkit_io::Dataset;
 use slamkit_vo::frame::Rig;
-use slamkit_vo::{FrameStatus, Odometry, VoConfig, VoxelMap};
+use slamkit_vo::{FrameStatus, Odometry, TrackingMode, VoConfig, VoxelMap};
+use std::path::Path;
 
-use crate::session::{MapChange, TrackingStatus, Update};
+use crate::map_file;
+use crate::session::{MapChange, Session, TrackingStatus, Update};
 use crate::SlamError;
 use point_map::PointMapper;
 use prepare::Prepared;
@@ -82,6 +86,8 @@ pub struct VisualSlam {
     failures_in_row: usize,
     /// Index of the next frame [`Self::push`] prepares (one past the last tracked).
     next_index: usize,
+    /// The keyframes for the map file.
+    map: VisualMap,
 }
 
 /// Frame counters of a [`VisualSlam`] session.
@@ -161,6 +167,7 @@ impl VisualSlam {
             stats: VisualStats::default(),
             failures_in_row: 0,
             next_index: 0,
+            map: VisualMap::default(),
         })
     }
 
@@ -248,13 +255,24 @@ impl VisualSlam {
             }
         };
         self.stats.unmapped = self.point_map.unmapped();
+        let pose = world_from_tracked * self.tracked_from_camera;
+        let keyframe = tracking == TrackingStatus::Tracking
+            && match self.config.mode {
+                TrackingMode::LocalMap => self.odometry.keyframes() > keyframes_before,
+                TrackingMode::FrameToFrame => {
+                    (self.stats.processed - 1) % self.config.local_map.keyframe_every.max(1) == 0
+                }
+            };
+        if keyframe {
+            self.add_keyframe(timestamp, pose);
+        }
         Some(VisualUpdate {
             update: Update {
                 timestamp,
-                pose: Some(world_from_tracked * self.tracked_from_camera),
+                pose: Some(pose),
                 status: tracking,
                 map: MapChange {
-                    keyframes_added: self.odometry.keyframes() - keyframes_before,
+                    keyframes_added: usize::from(keyframe),
                     loop_closures: 0,
                     map_moved: false,
                 },
@@ -262,6 +280,28 @@ impl VisualSlam {
             index,
             frame: status,
         })
+    }
+
+    /// Records the frame just tracked, at `pose`, as a keyframe of the map, its points moved
+    /// from the tracked camera into the rig's reference camera.
+    fn add_keyframe(&mut self, timestamp: f64, pose: Pose3) {
+        let camera_from_tracked = self.tracked_from_camera.inverse();
+        let points = self
+            .odometry
+            .reference_points()
+            .into_iter()
+            .map(|(p, d)| (camera_from_tracked * p, d))
+            .collect();
+        self.map.keyframes.push(keyframes::Keyframe {
+            timestamp,
+            pose,
+            points,
+        });
+    }
+
+    /// The keyframes so far.
+    pub fn map(&self) -> &VisualMap {
+        &self.map
     }
 
     /// Frame counters so far.
@@ -289,6 +329,29 @@ impl VisualSlam {
             timings,
             stats: self.stats,
         })
+    }
+}
+
+impl Session for VisualSlam {
+    fn push(&mut self, observation: Observation) -> Option<Update> {
+        VisualSlam::push(self, observation)
+    }
+
+    /// Writes the keyframes (poses, points and descriptors; [`keyframes`] lists the sections).
+    fn save(&self, path: &Path) -> Result<(), SlamError> {
+        let rig = match self.rig {
+            Rig::Rgbd { .. } => map_file::Rig::Rgbd,
+            Rig::Stereo { .. } => map_file::Rig::Stereo,
+        };
+        let map_error = |source| SlamError::MapFile {
+            path: path.to_path_buf(),
+            source,
+        };
+        self.map
+            .to_map_file(rig)
+            .map_err(map_error)?
+            .save(path)
+            .map_err(map_error)
     }
 }
 

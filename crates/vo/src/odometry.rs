@@ -146,6 +146,15 @@ impl Odometry {
         self.keyframes
     }
 
+    /// The reference frame's features with depth (the last tracked or initialised frame):
+    /// camera-frame points \[m\] and ORB descriptors (`None` for KLT corners).
+    pub fn reference_points(&self) -> Vec<(Point3<f64>, Option<Descriptor>)> {
+        self.reference
+            .iter()
+            .flat_map(|r| r.features.iter().map(|f| (f.point, f.descriptor)))
+            .collect()
+    }
+
     /// Records a frame that failed before tracking (too dark, sizes that do not fit): the pose
     /// stays.
     pub fn skip(&mut self, reason: FailReason) -> FrameStatus {

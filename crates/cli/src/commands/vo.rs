@@ -1,6 +1,7 @@
 //! `slamkit vo`: visual odometry on an RGB-D or stereo dataset folder, through the
 //! [`VisualSlam`] session (started at the identity), with the trajectory, ground truth, point
-//! cloud and report written to the output folder.
+//! cloud and report written to the output folder, and with `--save-map` the keyframes as a
+//! `.skmap` file.
 
 use crate::config_file::config_over;
 use crate::output::{peak_rss_bytes, prepare_out_dir, progress_bar, timings_json, write_report};
@@ -8,6 +9,7 @@ use anyhow::Context;
 use serde_json::json;
 use slamkit_io::{Dataset, DatasetFormat as IoFormat};
 use slamkit_slam::visual::{self, PointMapping, RunOptions, VisualSlam};
+use slamkit_slam::Session;
 use slamkit_vo::depth::DepthRegistration;
 use slamkit_vo::{evaluate, FrontendKind, VoConfig};
 use std::path::{Path, PathBuf};
@@ -55,6 +57,9 @@ pub struct VoArgs {
     /// Play the dataset at its frame rate and drop the frames the pipeline cannot take.
     #[arg(long)]
     pub realtime: bool,
+    /// Write the map (keyframe poses, their 3D points and ORB descriptors) to this `.skmap`.
+    #[arg(long)]
+    pub save_map: Option<PathBuf>,
     /// Output folder.
     #[arg(long, default_value = "out/vo")]
     pub out: PathBuf,
@@ -94,6 +99,10 @@ pub fn run(args: &VoArgs) -> anyhow::Result<()> {
     for line in &result.skipped {
         eprintln!("skipped {line}");
     }
+    if let Some(path) = &args.save_map {
+        Session::save(&session, path)?;
+    }
+    let keyframes = session.map().keyframes.len();
     let session = session.finish()?;
     let mut timings = result.timings.clone();
     timings.merge(&session.timings);
@@ -132,7 +141,12 @@ pub fn run(args: &VoArgs) -> anyhow::Result<()> {
             "failed": s.failed,
             "initialisations": s.initialisations,
         },
-        "map": { "points": map.len(), "dropped_points": map.dropped() },
+        "map": {
+            "points": map.len(),
+            "dropped_points": map.dropped(),
+            "keyframes": keyframes,
+            "saved_to": args.save_map,
+        },
         "wall_seconds": started.elapsed().as_secs_f64(),
         "timings_ms": timings_json(&timings),
         "peak_rss_bytes": peak_rss_bytes(),
