@@ -14,7 +14,7 @@ use slamkit_vo::VoxelMap;
 use crate::SlamError;
 
 /// Frames the mapping thread may have waiting.
-const QUEUE: usize = 4;
+const QUEUE: usize = 4; // documented on PointMapping::EveryFrame
 
 /// How the session builds its world point map.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -22,7 +22,7 @@ pub enum PointMapping {
     /// No point map (a robot that maps otherwise, e.g. into a floor grid).
     Off,
     /// Every tracked frame's points enter the map; tracking waits when the mapping thread is
-    /// [`QUEUE`] frames behind.
+    /// four frames behind.
     #[default]
     EveryFrame,
     /// Live cameras: a frame whose points arrive while the mapping thread is busy is left out
