@@ -13,7 +13,10 @@
 //!   both ray-cast per pixel: [`Simulation::rgbd_frame`], [`Simulation::stereo_frame`].
 //! * [`ground_robot`]: a ground robot driven by velocity commands (closed loops), with its
 //!   camera, collisions and the world rasterised for scoring.
+//! * [`texture`]: procedural surface textures (checkerboards, hash-noise blobs) fixed to the
+//!   world, so camera images have features to track.
 //! * [`relations`]: pairs of scans for benchmark relations files.
+//! * [`error`]: [`SimError`], bad world descriptions and impossible robot paths.
 //! * [`simulation`]: a robot, a world and its sensors; [`Simulation::lidar_run`] gives the scans,
 //!   ranges and ground truth of a whole run.
 //!

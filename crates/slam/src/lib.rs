@@ -23,6 +23,7 @@
 pub mod collator;
 mod error;
 pub mod ground_robot;
+pub mod lidar;
 pub mod map_file;
 pub mod session;
 pub mod visual;
@@ -30,5 +31,6 @@ pub mod visual;
 pub use collator::Collator;
 pub use error::SlamError;
 pub use ground_robot::GroundRobotNav;
+pub use lidar::{LidarMap, LidarMethod, LidarSlam, LidarSlamConfig};
 pub use session::{MapChange, Session, TrackingStatus, Update};
 pub use visual::VisualSlam;

@@ -17,6 +17,8 @@
 //! * [`voxel_map`]: the world point map, merged per voxel, PLY export.
 //! * [`metrics`]: ATE, RPE and end-point drift against ground truth.
 //! * [`config`]: the configuration, defaults and TOML.
+//! * [`error`]: [`VoError`]; a bad frame is not an error but a failed [`FrameStatus`], counted
+//!   and skipped.
 
 pub mod config;
 pub mod depth;
