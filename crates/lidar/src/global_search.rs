@@ -69,10 +69,10 @@ impl Default for GlobalSearchConfig {
             off_path_m: 1.0,
             heading_sectors: 4,
             max_range_m: 10.0,
-            search_voxel_m: 0.2,
-            coarse_resolution_m: 0.2,
+            search_voxel_m: 0.3,
+            coarse_resolution_m: 0.3,
             fine: CorrelativeConfig {
-                linear_window_m: 0.3,
+                linear_window_m: 0.4,
                 angular_window_rad: 4f64.to_radians(),
                 resolution_m: 0.05,
                 sigma_m: 0.05,

@@ -181,6 +181,9 @@ pub enum ScanStatus {
     MatchFailed,
     /// Too few usable points (empty, NaN, negative or no-return ranges); predicted pose kept.
     Skipped,
+    /// Localisation only: odometry says the robot has barely moved since its last match, so
+    /// the scan was not matched and the pose follows odometry.
+    Unmoved,
 }
 
 /// The estimate for one scan.
@@ -243,10 +246,62 @@ pub struct IcpSlam {
     stats: IcpSlamStats,
     timings: StageTimings,
     /// Localisation only: the map is matched against and never changed.
-    frozen: bool,
+    frozen: Option<Frozen>,
     /// The node the next keyframe is chained to, when not the one before it (a resumed map's
     /// keyframe nearest to where the robot was found).
     chain_from: Option<usize>,
+}
+
+/// Settings of localisation in a fixed map ([`IcpSlam::localise_only`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct LocaliseOptions {
+    /// A scan whose odometry moved the robot less than this since its last match is not
+    /// matched; its pose follows odometry \[m\]...
+    pub min_motion_m: f64,
+    /// ...and turned it less than this \[rad\]. Both 0: match every scan.
+    pub min_motion_rad: f64,
+    /// Voxel size the scan is thinned to before matching \[m\] (ICP-SLAM's `scan_voxel_m`
+    /// when larger): a consistent saved map needs fewer points to pin a pose than a map
+    /// being built.
+    pub scan_voxel_m: f64,
+}
+
+impl Default for LocaliseOptions {
+    fn default() -> Self {
+        Self {
+            // Intel, the map's own log, localised with 0 / 0 (every scan matched), 0.05 m /
+            // 0.5° and 0.1 m / 1°: relations error 0.0160 / 0.0170 / 0.0185 m and 0.235 /
+            // 0.279 / 0.383°, CPU 4.5 / 4.1 / 3.6 s (mapping 0.0176 m, 0.243°, 12.4 s). MRPT
+            // icp-slam's localizationLinDistance / AngDistance are 0.2 m / 5°: 0.0210 m, 0.658°.
+            min_motion_m: 0.05,
+            min_motion_rad: 0.5f64.to_radians(),
+            scan_voxel_m: 0.1,
+        }
+    }
+}
+
+/// What a localiser in a fixed map keeps.
+#[derive(Debug, Clone)]
+struct Frozen {
+    options: LocaliseOptions,
+    /// The keyframes in the local map.
+    near: Vec<usize>,
+    /// Where the local map was chosen.
+    chosen_at: Option<Pose2>,
+    /// The pose of the last matched scan.
+    last_matched: Option<Pose2>,
+}
+
+impl Frozen {
+    /// True when `guess` is far enough from the last match to match again.
+    fn moved(&self, guess: &Pose2) -> bool {
+        self.last_matched.map_or(true, |last| {
+            let d = last.inverse() * guess;
+            d.translation.vector.norm() >= self.options.min_motion_m
+                || d.rotation.angle().abs() >= self.options.min_motion_rad
+        })
+    }
 }
 
 /// An odometry reading and the pose of the first scan that carried it ([`IcpSlam::predict`]).
@@ -277,7 +332,7 @@ impl IcpSlam {
             anchors: Vec::new(),
             stats: IcpSlamStats::default(),
             timings: StageTimings::default(),
-            frozen: false,
+            frozen: None,
             chain_from: None,
         })
     }
@@ -334,23 +389,65 @@ impl IcpSlam {
         Ok(slam)
     }
 
-    /// A localiser in a fixed map: every scan is matched to all of `keyframes` (with normals)
-    /// from the pose predicted after `world_from_base`, where the robot was found (by global
-    /// localisation: this does not search); nothing is inserted and nothing moves.
+    /// A localiser in a fixed map: each scan is matched from the pose predicted after
+    /// `world_from_base`, where the robot was found (by global localisation: this does not
+    /// search), against the `map_keyframes` keyframes nearest to the prediction (as a mapping
+    /// run matches against its most recent ones; one map of every keyframe would hold the
+    /// small inconsistencies where loops overlap). Nothing is inserted and nothing moves.
     pub fn localise_only(
         config: IcpSlamConfig,
         keyframes: Vec<Keyframe>,
         world_from_base: Pose2,
+        options: LocaliseOptions,
     ) -> Result<Self, LidarError> {
+        let scan_voxel_m = config.scan_voxel_m.max(options.scan_voxel_m);
         let mut slam = Self::new(IcpSlamConfig {
-            map_keyframes: 0,
+            scan_voxel_m,
             ..config
         })?;
-        slam.map.extend(keyframes.iter().cloned());
         slam.keyframes = keyframes;
         slam.world_from_base = world_from_base;
-        slam.frozen = true;
+        slam.frozen = Some(Frozen {
+            options,
+            near: Vec::new(),
+            chosen_at: None,
+            last_matched: None,
+        });
+        slam.select_near(&world_from_base);
         Ok(slam)
+    }
+
+    /// Localisation only: makes the local map the keyframes nearest to `pose`, once the robot
+    /// is as far from where it was last chosen as a mapping run goes between keyframes.
+    fn select_near(&mut self, pose: &Pose2) {
+        let Some(frozen) = &mut self.frozen else {
+            return;
+        };
+        let near_last = frozen.chosen_at.is_some_and(|at| {
+            (at.translation.vector - pose.translation.vector).norm()
+                < self.config.insertion_linear_m
+        });
+        if near_last {
+            return;
+        }
+        frozen.chosen_at = Some(*pose);
+        let mut near: Vec<usize> = nearest_keyframes(&self.keyframes, pose)
+            .into_iter()
+            .take(self.config.map_keyframes.max(1))
+            .collect();
+        near.sort_unstable();
+        if near == frozen.near {
+            return;
+        }
+        let start = Instant::now();
+        let mut map = KeyframeMap::new(self.config.map_voxel_m, self.config.map_keyframes);
+        map.extend_with_ids(
+            near.iter()
+                .filter_map(|&i| Some((i, self.keyframes.get(i)?.clone()))),
+        );
+        self.map = map;
+        frozen.near = near;
+        self.timings.record_since("local_map", start);
     }
 
     /// Estimates the pose of `scan` and updates the map. Never fails: a scan that cannot be used
@@ -370,18 +467,27 @@ impl IcpSlam {
             ));
             return self.commit(guess, ScanStatus::Skipped, None, None);
         }
+        if let Some(frozen) = &self.frozen {
+            if self.scan_odometry.is_some() && !frozen.moved(&guess) {
+                return self.commit(guess, ScanStatus::Unmoved, None, None);
+            }
+            self.select_near(&guess);
+        }
         self.stats.scans_processed += 1;
         if self.map.is_empty() {
             return self.commit(guess, ScanStatus::Initialised, None, Some(&points));
         }
         let (pose, status, goodness) = self.localise(&points, &guess);
+        if let Some(frozen) = &mut self.frozen {
+            frozen.last_matched = Some(pose);
+        }
         let moved = self.last_keyframe.map_or(true, |kf| {
             let d = kf.inverse() * pose;
             d.translation.vector.norm() >= self.config.insertion_linear_m
                 || d.rotation.angle().abs() >= self.config.insertion_angular_rad
         });
         let stale = self.consecutive_failures >= self.config.max_failures_before_insert.max(1);
-        let insert = !self.frozen && moved && (status != ScanStatus::MatchFailed || stale);
+        let insert = self.frozen.is_none() && moved && (status != ScanStatus::MatchFailed || stale);
         self.commit(pose, status, goodness, insert.then_some(points.as_slice()))
     }
 
@@ -470,8 +576,10 @@ impl IcpSlam {
     fn insert(&mut self, points: &[Point2<f64>], pose: &Pose2) {
         let start = Instant::now();
         let keyframe = self.config.keyframe(points.to_vec(), *pose);
-        self.map.insert(keyframe.clone());
         let node = self.graph.add_node(*pose);
+        // The map knows its keyframes by graph node, which [`KeyframeMap::relocate`] moves:
+        // in a resumed map the node is not the count of keyframes this map was given.
+        self.map.insert_with_id(node, keyframe.clone());
         let from = self.chain_from.take().or(node.checked_sub(1));
         if let Some((from, prev)) = from.and_then(|i| Some((i, self.keyframes.get(i)?))) {
             self.open_distance_m +=
@@ -570,6 +678,7 @@ impl IcpSlam {
         // extrapolating a guess that did not fit.
         self.last_motion = match status {
             ScanStatus::Initialised | ScanStatus::MatchFailed => Pose2::identity(),
+            ScanStatus::Unmoved => self.last_motion,
             _ => self.world_from_base.inverse() * pose,
         };
         self.world_from_base = pose;
@@ -587,7 +696,12 @@ impl IcpSlam {
                 });
             }
         }
-        let anchor = self.keyframes.len().checked_sub(1);
+        // The newest keyframe, or in a resumed map before the first new one the old keyframe
+        // nearest to where the robot was found.
+        let anchor = match self.chain_from {
+            Some(nearest) => Some(nearest),
+            None => self.keyframes.len().checked_sub(1),
+        };
         let world_from_keyframe = anchor
             .and_then(|i| self.keyframes.get(i))
             .map_or(Pose2::identity(), |kf| kf.world_from_base);
@@ -599,6 +713,12 @@ impl IcpSlam {
             goodness,
             inserted: insert.is_some(),
         }
+    }
+
+    /// Every scan so far as the keyframe it follows (`None` before the first) and its pose
+    /// relative to it: what [`IcpSlam::poses`] composes with the keyframes' current poses.
+    pub fn anchors(&self) -> &[(Option<usize>, Pose2)] {
+        &self.anchors
     }
 
     /// The current estimate of every scan's pose so far, following the optimised keyframes.

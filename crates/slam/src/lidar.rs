@@ -21,15 +21,16 @@ pub mod map;
 
 use crate::session::{MapChange, Session, TrackingStatus, Update};
 use crate::SlamError;
-pub use map::{LidarMap, MapKeyframe};
+pub use map::{LidarMap, MapKeyframe, MapScan};
 use serde::{Deserialize, Serialize};
 use slamkit_core::pose::pose2_to_pose3;
 use slamkit_core::{LaserScan, Observation, Pose2, StageTimings, Trajectory};
 use slamkit_lidar::global_search::{GlobalOutcome, GlobalSearch, GlobalSearchConfig};
-use slamkit_lidar::icp_slam::{IcpSlam, IcpSlamConfig, ScanStatus};
+use slamkit_lidar::icp_slam::{IcpSlam, IcpSlamConfig, LocaliseOptions, ScanStatus};
 use slamkit_lidar::motion::{is_finite_pose, ScanOdometry};
 use slamkit_lidar::pose_graph::Edge;
 use slamkit_lidar::rbpf::{interpolate_poses, Rbpf, RbpfConfig};
+use slamkit_map::{OccupancyGrid, OccupancyGridConfig};
 use std::path::Path;
 use std::time::Instant;
 
@@ -59,9 +60,16 @@ pub struct LidarSlamConfig {
     pub rbpf: RbpfConfig,
     /// Finding the robot in a saved map.
     pub global_search: GlobalSearchConfig,
-    /// While the robot is not found, the search is tried again every this many scans (each
-    /// search costs tens to hundreds of milliseconds on a building-sized map).
+    /// While the robot is not found, the search is tried again once odometry says it moved
+    /// this far since the last try \[m\] (a new view may settle what the last left
+    /// ambiguous; each search costs tenths of a second on a building-sized map)...
+    pub search_after_m: f64,
+    /// ...or turned this much \[rad\]...
+    pub search_after_rad: f64,
+    /// ...or, when the scans carry no odometry, every this many scans.
     pub search_every_scans: usize,
+    /// Matching in a saved map.
+    pub localise: LocaliseOptions,
     /// Localisation: after this many scans in a row without a match the robot is lost.
     pub lost_after_failures: usize,
 }
@@ -73,7 +81,10 @@ impl Default for LidarSlamConfig {
             icp: IcpSlamConfig::default(),
             rbpf: RbpfConfig::default(),
             global_search: GlobalSearchConfig::default(),
-            search_every_scans: 10,
+            search_after_m: 0.5,
+            search_after_rad: 0.5,
+            search_every_scans: 20,
+            localise: LocaliseOptions::default(),
             lost_after_failures: 10,
         }
     }
@@ -96,6 +107,30 @@ pub struct LidarSessionStats {
     pub losses: usize,
     /// Index of the scan of the first fix.
     pub first_fix_scan: Option<usize>,
+}
+
+/// Scan counts of a session.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct FrameCounts {
+    /// Scans matched (filter updates for the particle filter).
+    pub processed: usize,
+    /// Scans not used: too few usable points, the particle filter waiting for motion, or the
+    /// robot not found yet in a saved map.
+    pub skipped: usize,
+    /// Scans whose match failed; their pose is a prediction.
+    pub failed: usize,
+}
+
+/// Inserts scans at their poses (`world_from_base`) into a fresh occupancy grid.
+pub fn grid_of_scans<'a>(
+    scans: impl IntoIterator<Item = (&'a LaserScan, Pose2)>,
+    config: OccupancyGridConfig,
+) -> Result<OccupancyGrid, SlamError> {
+    let mut grid = OccupancyGrid::new(config)?;
+    for (scan, pose) in scans {
+        grid.insert_scan(scan, &(pose * scan.base_from_laser))?;
+    }
+    Ok(grid)
 }
 
 /// A 2D lidar session: SLAM, or localisation in / continuation of a saved map.
@@ -159,8 +194,8 @@ struct InMap {
     extend: bool,
     /// The matcher once the robot is found, and the index of its first scan.
     tracker: Option<(Box<IcpSlam>, usize)>,
-    /// Scans since the last global search.
-    since_search: Option<usize>,
+    /// Scans since the last global search, and the odometry of its scan.
+    since_search: Option<(usize, Option<Pose2>)>,
     /// The scans of the keyframes the tracker added (continuation).
     new_scans: Vec<LaserScan>,
 }
@@ -265,13 +300,13 @@ impl LidarSlam {
         }
     }
 
-    /// Every scan's pose as the session now knows it: for a new ICP-SLAM map, the poses follow
-    /// the optimised keyframes; for the particle filter, the best particle's path (between its
-    /// updates, odometry); in a saved map, the poses found online, and the scans before the
-    /// first fix placed by odometry from it when the scans carry odometry (left out otherwise).
-    pub fn trajectory(&self) -> Trajectory {
-        let times = self.online.iter().map(|(t, _)| *t);
-        let poses: Vec<Option<Pose2>> = match &self.mode {
+    /// Every scan's pose as the session now knows it (`None` where it has none): for a new
+    /// ICP-SLAM map, the poses follow the optimised keyframes; for the particle filter, the
+    /// best particle's path (between its updates, odometry); in a saved map, the poses found
+    /// online, and the scans before the first fix placed by odometry from it when the scans
+    /// carry odometry.
+    pub fn poses(&self) -> Vec<Option<Pose2>> {
+        match &self.mode {
             Mode::Icp { slam, .. } => slam.poses().into_iter().map(Some).collect(),
             Mode::Rbpf(run) => {
                 let poses = interpolate_poses(&run.filter.best_updates(), &run.poses);
@@ -287,24 +322,78 @@ impl LidarSlam {
                 backfill_by_odometry(&mut poses, &self.odometry);
                 poses
             }
-        };
+        }
+    }
+
+    /// [`LidarSlam::poses`] with the scans' times, the scans without a pose left out.
+    pub fn trajectory(&self) -> Trajectory {
         let mut trajectory = Trajectory::new();
-        for (t, pose) in times.zip(poses) {
+        for ((t, _), pose) in self.online.iter().zip(self.poses()) {
             if let Some(pose) = pose {
-                trajectory.push(t, pose2_to_pose3(&pose));
+                trajectory.push(*t, pose2_to_pose3(&pose));
             }
         }
         trajectory
     }
 
+    /// The particle filter's best map, when the session runs one.
+    pub fn particle_grid(&self) -> Option<&OccupancyGrid> {
+        match &self.mode {
+            Mode::Rbpf(run) => run.filter.best_map(),
+            _ => None,
+        }
+    }
+
+    /// Scans matched, skipped (too few usable points, or before the robot was found in a
+    /// saved map) and failed (no match; pose predicted), so far.
+    pub fn frame_counts(&self) -> FrameCounts {
+        let scans = self.stats.scans;
+        match &self.mode {
+            Mode::Icp { slam, .. } => {
+                let s = slam.stats();
+                FrameCounts {
+                    processed: s.scans_processed,
+                    skipped: s.scans_skipped,
+                    failed: s.matches_failed,
+                }
+            }
+            Mode::Rbpf(run) => {
+                let s = run.filter.stats();
+                FrameCounts {
+                    processed: s.updates,
+                    skipped: s.scans_skipped,
+                    failed: 0,
+                }
+            }
+            Mode::InMap(in_map) => {
+                let (processed, failed) = in_map.tracker.as_ref().map_or((0, 0), |(t, _)| {
+                    (t.stats().scans_processed, t.stats().matches_failed)
+                });
+                FrameCounts {
+                    processed,
+                    skipped: scans - processed,
+                    failed,
+                }
+            }
+        }
+    }
+
     /// The map as it stands: keyframes at their current poses and the pose graph.
     pub fn map(&self) -> LidarMap {
         match &self.mode {
-            Mode::Icp { slam, scans } => map_of(slam, &[], scans),
+            Mode::Icp { slam, scans } => {
+                let mut map = map_of(slam, &[], scans);
+                map.scans = map_scans(&self.online, slam.anchors(), 0);
+                map
+            }
             Mode::Rbpf(run) => run.map(&self.config),
             Mode::InMap(in_map) => match (&in_map.tracker, in_map.extend) {
-                (Some((tracker, _)), true) => {
-                    map_of(tracker, &in_map.map.keyframes, &in_map.new_scans)
+                (Some((tracker, first)), true) => {
+                    let mut map = map_of(tracker, &in_map.map.keyframes, &in_map.new_scans);
+                    map.scans = in_map.map.scans.clone();
+                    map.scans
+                        .extend(map_scans(&self.online, tracker.anchors(), *first));
+                    map
                 }
                 _ => in_map.map.clone(),
             },
@@ -428,6 +517,11 @@ impl ParticleRun {
         let mut map = LidarMap::default();
         let mut last: Option<Pose2> = None;
         for (scan, pose) in self.scans.iter().zip(&poses) {
+            map.scans.push(map::MapScan {
+                timestamp: scan.timestamp,
+                keyframe: map.keyframes.len().checked_sub(1),
+                keyframe_from_base: last.map_or(*pose, |l| l.inverse() * pose),
+            });
             let far = last.map_or(true, |l| {
                 let d = l.inverse() * pose;
                 d.translation.vector.norm() >= icp.insertion_linear_m
@@ -453,6 +547,10 @@ impl ParticleRun {
                     ..scan.clone()
                 },
             });
+            if let Some(newest) = map.scans.last_mut() {
+                newest.keyframe = Some(map.keyframes.len() - 1);
+                newest.keyframe_from_base = Pose2::identity();
+            }
             last = Some(*pose);
         }
         map
@@ -491,15 +589,24 @@ impl InMap {
             }
             return (Some(est.world_from_base), icp_status(est.status), change);
         }
-        let due = self
-            .since_search
-            .map_or(true, |n| n + 1 >= config.search_every_scans.max(1));
         let waiting = (None, TrackingStatus::Initialising, MapChange::default());
+        let odometry = scan.odometry.filter(is_finite_pose);
+        let due = match self.since_search {
+            None => true,
+            Some((_, Some(then))) if odometry.is_some() => odometry.is_some_and(|now| {
+                let d = then.inverse() * now;
+                d.translation.vector.norm() >= config.search_after_m
+                    || d.rotation.angle().abs() >= config.search_after_rad
+            }),
+            Some((n, _)) => n + 1 >= config.search_every_scans.max(1),
+        };
         if !due {
-            self.since_search = self.since_search.map(|n| n + 1);
+            if let Some((n, _)) = &mut self.since_search {
+                *n += 1;
+            }
             return waiting;
         }
-        self.since_search = Some(0);
+        self.since_search = Some((0, odometry));
         let points = config.icp.scan_points(&scan);
         if points.len() < config.icp.min_scan_points {
             return waiting;
@@ -523,7 +630,12 @@ impl InMap {
             let edges = self.map.edges.clone();
             IcpSlam::resume(config.icp.clone(), keyframes, edges, fix.world_from_base)
         } else {
-            IcpSlam::localise_only(config.icp.clone(), keyframes, fix.world_from_base)
+            IcpSlam::localise_only(
+                config.icp.clone(),
+                keyframes,
+                fix.world_from_base,
+                config.localise.clone(),
+            )
         };
         let Ok(mut tracker) = tracker else {
             return waiting;
@@ -542,9 +654,10 @@ impl InMap {
 /// The tracking status of an ICP-SLAM scan status.
 fn icp_status(status: ScanStatus) -> TrackingStatus {
     match status {
-        ScanStatus::Initialised | ScanStatus::Matched | ScanStatus::MatchedCorrelative => {
-            TrackingStatus::Tracking
-        }
+        ScanStatus::Initialised
+        | ScanStatus::Matched
+        | ScanStatus::MatchedCorrelative
+        | ScanStatus::Unmoved => TrackingStatus::Tracking,
         ScanStatus::MatchFailed | ScanStatus::Skipped => TrackingStatus::Predicted,
     }
 }
@@ -571,7 +684,28 @@ fn map_of(slam: &IcpSlam, old: &[MapKeyframe], new_scans: &[LaserScan]) -> Lidar
             })
             .collect(),
         edges: slam.graph().edges().to_vec(),
+        scans: Vec::new(),
     }
+}
+
+/// The scans from `first` on, following the keyframes `anchors` name.
+fn map_scans(
+    online: &[(f64, Option<Pose2>)],
+    anchors: &[(Option<usize>, Pose2)],
+    first: usize,
+) -> Vec<map::MapScan> {
+    online
+        .iter()
+        .skip(first)
+        .zip(anchors)
+        .map(
+            |((timestamp, _), (keyframe, keyframe_from_base))| map::MapScan {
+                timestamp: *timestamp,
+                keyframe: *keyframe,
+                keyframe_from_base: *keyframe_from_base,
+            },
+        )
+        .collect()
 }
 
 /// Places the scans before the first known pose by odometry from it, as long as the scans

@@ -1,19 +1,23 @@
-//! `slamkit lidar`: 2D lidar SLAM on a CARMEN log, with the map, trajectory and report written
-//! to the output folder, and the relations metric when the benchmark's `.relations` file is
-//! known.
+//! `slamkit lidar`: 2D lidar SLAM on a CARMEN log through a [`LidarSlam`] session (a new map,
+//! localisation in a saved map, or its continuation), with the map, trajectory and report
+//! written to the output folder, and the relations metric when the benchmark's `.relations`
+//! file is known.
 
 use crate::commands::eval::load_relations;
-use crate::commands::lidar_pf;
+use crate::commands::lidar_mcl;
 use crate::config_file::config_over;
 use crate::output::{peak_rss_bytes, prepare_out_dir, progress_bar, timings_json, write_report};
 use anyhow::Context;
 use serde::de::DeserializeOwned;
 use serde::Serialize;
 use serde_json::json;
-use slamkit_core::{LaserScan, Trajectory};
+use slamkit_core::{Pose2, Trajectory};
 use slamkit_io::carmen::{CarmenLog, SkipReason};
-use slamkit_lidar::icp_slam::{run_icp_slam, IcpSlamConfig, IcpSlamOutput, IcpSlamStats};
+use slamkit_lidar::icp_slam::IcpSlamConfig;
+use slamkit_lidar::rbpf::RbpfConfig;
 use slamkit_map::{save_map_yaml, save_png, OccupancyGrid, OccupancyGridConfig};
+use slamkit_slam::lidar::{grid_of_scans, LidarMap};
+use slamkit_slam::{LidarMethod, LidarSlam, LidarSlamConfig, Session};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -32,16 +36,30 @@ pub enum Method {
 pub struct LidarArgs {
     /// CARMEN log (plain or gzip).
     pub log: PathBuf,
-    /// SLAM method.
+    /// SLAM method of a new map.
     #[arg(long, value_enum, default_value = "icp")]
     pub method: Method,
     /// Particles of the particle filter.
     #[arg(long, default_value_t = 30)]
     pub particles: usize,
-    /// Localise in this saved map (ROS map_server YAML) instead of building one.
+    /// Seed of the particle filter's random draws.
     #[arg(long)]
+    pub seed: Option<u64>,
+    /// Localise in this saved map instead of building one: a `.skmap` (the start pose is found
+    /// by global search, the map is not changed) or a ROS map_server YAML (Monte Carlo
+    /// localisation).
+    #[arg(long, conflicts_with = "continue_map")]
     pub localize: Option<PathBuf>,
-    /// TOML file with configuration overrides (fields of the method's config).
+    /// Continue this saved map (`.skmap`): the robot is found in it, then ICP-SLAM extends it.
+    #[arg(long = "continue")]
+    pub continue_map: Option<PathBuf>,
+    /// Also write the map to this `.skmap` file (the output folder always gets map.skmap).
+    #[arg(long)]
+    pub save_map: Option<PathBuf>,
+    /// TOML file with configuration overrides: fields of the method's config for a new map
+    /// (ICP-SLAM's or the particle filter's), of the session's with `--continue` and `--localize
+    /// MAP.skmap` (`[icp]`, `[global_search]`, `[localise]`, ...), of MCL's with `--localize
+    /// MAP.yaml`.
     #[arg(long)]
     pub config: Option<PathBuf>,
     /// Benchmark relations to score against; by default `<log stem>.relations` beside the log.
@@ -54,65 +72,168 @@ pub struct LidarArgs {
 
 /// Runs `slamkit lidar`.
 pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
-    if let Some(map) = &args.localize {
-        return lidar_pf::run_localization(args, map);
-    }
-    if args.method == Method::Rbpf {
-        return lidar_pf::run_rbpf_slam(args);
+    if let Some(map) = args.localize.as_deref().filter(|p| !is_skmap(p)) {
+        return lidar_mcl::run_localization(args, map);
     }
     let started = Instant::now();
-    let config: IcpSlamConfig = load_config(args.config.as_deref())?;
+    let config = session_config(args)?;
     let out = prepare_out_dir(&args.out)?;
-    let log = slamkit_io::carmen::read_carmen(&args.log)
-        .with_context(|| format!("reading log {}", args.log.display()))?;
-    if log.scans.is_empty() {
-        anyhow::bail!("{} holds no laser scan", args.log.display());
+    let log = read_log(&args.log)?;
+    let load = |path: &Path| -> anyhow::Result<LidarMap> {
+        let started = Instant::now();
+        let (map, _) = LidarMap::load(path)?;
+        println!(
+            "map {}: {} keyframes, loaded in {:.2} s",
+            path.display(),
+            map.keyframes.len(),
+            started.elapsed().as_secs_f64()
+        );
+        Ok(map)
+    };
+    let (mut session, what) = match (&args.localize, &args.continue_map) {
+        (Some(path), _) => (LidarSlam::localise(config, load(path)?)?, "localise"),
+        (None, Some(path)) => (LidarSlam::resume(config, load(path)?)?, "continue"),
+        (None, None) => {
+            let name = match args.method {
+                Method::Icp => "icp-slam",
+                Method::Rbpf => "rbpf-slam",
+            };
+            (LidarSlam::new(config, Pose2::identity())?, name)
+        }
+    };
+    let bar = progress_bar(log.scans.len() as u64, what);
+    for scan in &log.scans {
+        session.push_scan(scan.clone());
+        bar.inc(1);
     }
-    let bar = progress_bar(log.scans.len() as u64, "icp-slam");
-    let result = run_icp_slam(&log.scans, &config, |_| bar.inc(1))?;
     bar.finish_and_clear();
 
-    slamkit_io::trajectory_file::write_tum(&out.join("trajectory.tum"), &result.trajectory)?;
-    let grid = build_grid(&log.scans, &result)?;
+    let trajectory = session.trajectory();
+    slamkit_io::trajectory_file::write_tum(&out.join("trajectory.tum"), &trajectory)?;
+    if args.continue_map.is_some() {
+        // Every scan of every run in the map, following the keyframes this run corrected.
+        let path = out.join("trajectory_map.tum");
+        slamkit_io::trajectory_file::write_tum(&path, &session.map().trajectory())?;
+    }
+    let grid = output_grid(&session, &log, args.localize.is_some())?;
     save_map_yaml(&grid, &out.join("map.yaml"))?;
     save_png(&grid, &out.join("map.png"))?;
+    for path in std::iter::once(out.join("map.skmap")).chain(args.save_map.clone()) {
+        session
+            .save(&path)
+            .with_context(|| format!("saving the map to {}", path.display()))?;
+    }
 
-    let metrics = relations_metrics(args, &result.trajectory)?;
+    let counts = session.frame_counts();
     let report = json!({
         "input": args.log,
-        "method": "icp",
-        "config": config,
+        "method": match (&args.localize, &args.continue_map) {
+            (Some(_), _) => "localise",
+            (None, Some(_)) => "continue",
+            _ => match args.method { Method::Icp => "icp", Method::Rbpf => "rbpf" },
+        },
+        "map": args.localize.as_ref().or(args.continue_map.as_ref()),
+        "config": session.config(),
         "frames": {
             "read": log.scans.len(),
-            "processed": result.stats.scans_processed,
-            "skipped": result.stats.scans_skipped,
-            "failed": result.stats.matches_failed,
+            "processed": counts.processed,
+            "skipped": counts.skipped,
+            "failed": counts.failed,
             "unreadable_lines": log.skipped.len(),
         },
-        "scans": scan_counts(&log, &result.stats),
-        "stats": result.stats,
+        "scans": scan_counts(&log, &session),
+        "session": session.stats(),
+        "stats": session.method_stats(),
         "wall_seconds": started.elapsed().as_secs_f64(),
-        "timings_ms": timings_json(&result.timings),
+        "timings_ms": timings_json(&session.timings()),
         "peak_rss_bytes": peak_rss_bytes(),
-        "metrics": metrics,
+        "metrics": relations_metrics(args, &trajectory)?,
     });
     write_report(&out, &report)?;
     print_summary(&out, &report);
+    if let Some(scan) = session.stats().first_fix_scan {
+        println!("found in the map at scan {scan}");
+    } else if args.localize.is_some() || args.continue_map.is_some() {
+        println!("the robot was never found in the map");
+    }
     Ok(())
+}
+
+/// True for a path naming a `.skmap` file.
+fn is_skmap(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("skmap"))
+}
+
+/// The session's settings: defaults, with `--config` laid over the method's part for a new
+/// map (ICP-SLAM's for `icp`, the particle filter's for `rbpf`, as the batch runs took them),
+/// and over the whole session's ([`LidarSlamConfig`]: `[icp]`, `[global_search]`,
+/// `[localise]`, ...) in a saved map.
+fn session_config(args: &LidarArgs) -> anyhow::Result<LidarSlamConfig> {
+    if args.localize.is_some() || args.continue_map.is_some() {
+        return load_config::<LidarSlamConfig>(args.config.as_deref());
+    }
+    let mut config = LidarSlamConfig::default();
+    match args.method {
+        Method::Rbpf => {
+            config.method = LidarMethod::Rbpf;
+            config.rbpf = load_config::<RbpfConfig>(args.config.as_deref())?;
+            config.rbpf.particles = args.particles;
+            if let Some(seed) = args.seed {
+                config.rbpf.seed = seed;
+            }
+        }
+        _ => config.icp = load_config::<IcpSlamConfig>(args.config.as_deref())?,
+    }
+    Ok(config)
+}
+
+/// The grid written as map.pgm/png: the saved map's in localisation (it is not changed), the
+/// particle filter's best map, or every scan at its estimated pose.
+fn output_grid(
+    session: &LidarSlam,
+    log: &CarmenLog,
+    localising: bool,
+) -> anyhow::Result<OccupancyGrid> {
+    if localising {
+        return Ok(session.map().grid(OccupancyGridConfig::default())?);
+    }
+    if let Some(grid) = session.particle_grid() {
+        return Ok(grid.clone());
+    }
+    let posed = log
+        .scans
+        .iter()
+        .zip(session.poses())
+        .filter_map(|(scan, pose)| Some((scan, pose?)));
+    Ok(grid_of_scans(posed, OccupancyGridConfig::default())?)
+}
+
+pub(crate) fn read_log(path: &Path) -> anyhow::Result<CarmenLog> {
+    let log = slamkit_io::carmen::read_carmen(path)
+        .with_context(|| format!("reading log {}", path.display()))?;
+    if log.scans.is_empty() {
+        anyhow::bail!("{} holds no laser scan", path.display());
+    }
+    Ok(log)
 }
 
 /// Scans read and processed, and the broken ones skipped: scans the mapper could not use, by
 /// reason, and log lines the reader could not parse (truncated, NaN, garbage), by reason.
-fn scan_counts(log: &CarmenLog, stats: &IcpSlamStats) -> serde_json::Value {
+fn scan_counts(log: &CarmenLog, session: &LidarSlam) -> serde_json::Value {
     let mut unreadable: BTreeMap<&str, usize> = BTreeMap::new();
     for line in &log.skipped {
         *unreadable.entry(skip_reason_key(&line.reason)).or_default() += 1;
     }
+    let broken = &session.method_stats()["skipped_broken"];
+    let total: u64 = broken.as_object().map_or(0, |reasons| {
+        reasons.values().filter_map(|v| v.as_u64()).sum()
+    });
     json!({
         "read": log.scans.len(),
-        "processed": stats.scans_processed,
-        "skipped_broken": stats.skipped_broken.total(),
-        "skipped_broken_reasons": stats.skipped_broken,
+        "processed": session.frame_counts().processed,
+        "skipped_broken": total,
+        "skipped_broken_reasons": broken,
         "unreadable_lines": log.skipped.len(),
         "unreadable_line_reasons": unreadable,
     })
@@ -163,17 +284,6 @@ pub(crate) fn relations_metrics(
     let stats = slamkit_eval::relations_error(&relations, trajectory)
         .with_context(|| format!("scoring against {}", path.display()))?;
     Ok(json!({ "relations_file": path, "relations": stats }))
-}
-
-/// Inserts every scan at its estimated pose into a fresh occupancy grid.
-fn build_grid(scans: &[LaserScan], result: &IcpSlamOutput) -> anyhow::Result<OccupancyGrid> {
-    let mut grid = OccupancyGrid::new(OccupancyGridConfig::default())?;
-    for (scan, est) in scans.iter().zip(&result.estimates) {
-        let world_from_laser = est.world_from_base * scan.base_from_laser;
-        grid.insert_scan(scan, &world_from_laser)
-            .context("inserting a scan into the occupancy grid")?;
-    }
-    Ok(grid)
 }
 
 /// Prints the frame counts, wall time and relations metric of `report`.

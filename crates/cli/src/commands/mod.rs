@@ -3,7 +3,7 @@
 pub mod demo;
 pub mod eval;
 pub mod lidar;
-pub mod lidar_pf;
+pub mod lidar_mcl;
 pub mod nav;
 pub mod plan;
 pub mod sim;

@@ -9,12 +9,15 @@
 //!   all rebuilt from them, and four bytes a beam compress to about two.
 //! * `EDGE`: pose-graph edges (`from`, `to`, the measured relative pose, the upper triangle of
 //!   the information matrix, the robust kernel's scale if any).
+//! * `SCAN`: every scan of the runs that built the map: its time, the keyframe it follows
+//!   (`u32::MAX`: none) and its pose relative to that keyframe, so the trajectory follows the
+//!   keyframes when a later run corrects them (a continued map's whole trajectory).
 
 use crate::map_file::codec::{Reader, Writer};
 use crate::map_file::{MapFile, MapFileError, MapHeader, Rig, Section};
 use crate::SlamError;
 use nalgebra::{Matrix3, Vector2};
-use slamkit_core::{LaserScan, Pose2};
+use slamkit_core::{LaserScan, Pose2, Trajectory};
 use slamkit_lidar::icp_slam::IcpSlamConfig;
 use slamkit_lidar::point_map::Keyframe;
 use slamkit_lidar::pose_graph::Edge;
@@ -23,6 +26,9 @@ use std::path::Path;
 
 const KEYFRAMES: [u8; 4] = *b"KEYF";
 const EDGES: [u8; 4] = *b"EDGE";
+const SCANS: [u8; 4] = *b"SCAN";
+/// A scan that follows no keyframe.
+const NO_KEYFRAME: u32 = u32::MAX;
 /// A range that was not a non-negative number.
 const INVALID_RANGE: u32 = u32::MAX;
 
@@ -35,13 +41,27 @@ pub struct MapKeyframe {
     pub scan: LaserScan,
 }
 
-/// A 2D lidar map: keyframes and the pose graph over them.
+/// Where one scan of a mapping run was, relative to the keyframe it follows.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MapScan {
+    /// Time of the scan \[s\].
+    pub timestamp: f64,
+    /// The keyframe it follows (`None`: the map frame itself).
+    pub keyframe: Option<usize>,
+    /// `keyframe_from_base`.
+    pub keyframe_from_base: Pose2,
+}
+
+/// A 2D lidar map: keyframes, the pose graph over them, and the scans of the runs that made
+/// it.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct LidarMap {
     /// Keyframes, in the order they were made (the pose graph's node order).
     pub keyframes: Vec<MapKeyframe>,
     /// Pose-graph edges between keyframes.
     pub edges: Vec<Edge>,
+    /// Every scan of the runs that built the map, in time order.
+    pub scans: Vec<MapScan>,
 }
 
 impl LidarMap {
@@ -103,6 +123,17 @@ impl LidarMap {
                 None => w.u8(0),
             }
         }
+        let edges = w.into_bytes();
+        let mut w = Writer::new();
+        w.len(self.scans.len())?;
+        for scan in &self.scans {
+            w.f64(scan.timestamp);
+            match scan.keyframe {
+                Some(k) => w.len(k)?,
+                None => w.u32(NO_KEYFRAME),
+            }
+            put_pose(&mut w, &scan.keyframe_from_base);
+        }
         Ok(MapFile {
             header,
             sections: vec![
@@ -112,6 +143,10 @@ impl LidarMap {
                 },
                 Section {
                     tag: EDGES,
+                    data: edges,
+                },
+                Section {
+                    tag: SCANS,
                     data: w.into_bytes(),
                 },
             ],
@@ -186,7 +221,47 @@ impl LidarMap {
             });
         }
         r.finish()?;
-        Ok(Self { keyframes, edges })
+        let mut r = Reader::new(file.section(&SCANS)?, "the SCAN section");
+        let n = r.len(8 + 4 + 3 * 8)?;
+        let mut scans = Vec::with_capacity(n);
+        for _ in 0..n {
+            let timestamp = r.f64()?;
+            let keyframe = match r.u32()? {
+                NO_KEYFRAME => None,
+                k if (k as usize) < keyframes.len() => Some(k as usize),
+                k => {
+                    return Err(MapFileError::Malformed(format!(
+                        "a scan follows keyframe {k} of {}",
+                        keyframes.len()
+                    )))
+                }
+            };
+            scans.push(MapScan {
+                timestamp,
+                keyframe,
+                keyframe_from_base: get_pose(&mut r)?,
+            });
+        }
+        r.finish()?;
+        Ok(Self {
+            keyframes,
+            edges,
+            scans,
+        })
+    }
+
+    /// Every scan of the runs that built the map at its current pose (following its keyframe).
+    pub fn trajectory(&self) -> Trajectory {
+        let mut trajectory = Trajectory::new();
+        for scan in &self.scans {
+            let keyframe = scan
+                .keyframe
+                .and_then(|k| self.keyframes.get(k))
+                .map_or(Pose2::identity(), |kf| kf.world_from_base);
+            let pose = keyframe * scan.keyframe_from_base;
+            trajectory.push(scan.timestamp, slamkit_core::pose::pose2_to_pose3(&pose));
+        }
+        trajectory
     }
 
     /// The keyframes as the matchers use them: points within `config`'s ranges with normals.
@@ -202,11 +277,11 @@ impl LidarMap {
 
     /// An occupancy grid of every keyframe scan at its pose (free space, hits, no-returns).
     pub fn grid(&self, config: OccupancyGridConfig) -> Result<OccupancyGrid, SlamError> {
-        let mut grid = OccupancyGrid::new(config)?;
-        for kf in &self.keyframes {
-            grid.insert_scan(&kf.scan, &(kf.world_from_base * kf.scan.base_from_laser))?;
-        }
-        Ok(grid)
+        let scans = self
+            .keyframes
+            .iter()
+            .map(|kf| (&kf.scan, kf.world_from_base));
+        super::grid_of_scans(scans, config)
     }
 
     /// Bounding box `[min x, min y, max x, max y]` of the keyframe poses and their scans' hits
@@ -291,6 +366,18 @@ mod tests {
                 information: Matrix3::from_diagonal(&nalgebra::Vector3::new(100.0, 100.0, 400.0)),
                 robust_scale: Some(1.5),
             }],
+            scans: vec![
+                MapScan {
+                    timestamp: 1.0,
+                    keyframe: None,
+                    keyframe_from_base: Pose2::identity(),
+                },
+                MapScan {
+                    timestamp: 1.5,
+                    keyframe: Some(1),
+                    keyframe_from_base: Pose2::new(Vector2::new(0.1, 0.0), 0.0),
+                },
+            ],
         }
     }
 
@@ -303,6 +390,8 @@ mod tests {
         assert_eq!(file.header, header);
         let back = LidarMap::from_file(&file).unwrap();
         assert_eq!(back.edges, map.edges);
+        assert_eq!(back.scans, map.scans);
+        assert_eq!(back.trajectory().len(), 2);
         for (a, b) in back.keyframes.iter().zip(&map.keyframes) {
             assert_eq!(a.world_from_base, b.world_from_base);
             let (ra, rb) = (&a.scan.ranges_m, &b.scan.ranges_m);
