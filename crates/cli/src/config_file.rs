@@ -71,7 +71,7 @@ mod tests {
         round_trip(slamkit_lidar::mcl::MclConfig::default());
         round_trip(slamkit_vo::VoConfig::default());
         round_trip(slamkit_sim::SimConfig::default());
-        round_trip(crate::commands::nav::closed_loop::NavLoopConfig::default());
+        round_trip(slamkit_slam::ground_robot::closed_loop::NavLoopConfig::default());
     }
 
     #[test]

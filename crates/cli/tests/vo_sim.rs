@@ -1,6 +1,7 @@
 //! RGB-D visual odometry on a simulated TUM RGB-D sequence (issue #5: "RGB-D visual odometry on
 //! a simulated 60 s TUM-format sequence in `office`: ATE RMSE ≤ 0.02 m"), end to end through the
-//! command line: `slamkit sim` writes the folder, `slamkit vo` reads it like any TUM sequence.
+//! command line: `slamkit sim` writes the folder, `slamkit vo` reads it like any TUM sequence
+//! and saves its map (`--save-map`).
 //!
 //! The camera rides the ground robot along the office's drive path at 0.25 m/s (the speed of
 //! issue #6's closed loop), 0.3 m above the floor, looking ahead; it runs at 15 Hz instead of
@@ -60,7 +61,16 @@ fn rgbd_vo_on_a_simulated_60_s_office_sequence_is_within_2_cm() {
     );
     let sequence = sim_out.join("tum_rgbd_fr1");
     let vo_out = dir.path().join("vo");
-    slamkit(&["vo", sequence.to_str().unwrap()], &vo_out);
+    let map = dir.path().join("office.skmap");
+    slamkit(
+        &[
+            "vo",
+            sequence.to_str().unwrap(),
+            "--save-map",
+            map.to_str().unwrap(),
+        ],
+        &vo_out,
+    );
 
     let text = std::fs::read_to_string(vo_out.join("report.json")).unwrap();
     let report: serde_json::Value = serde_json::from_str(&text).unwrap();
@@ -74,4 +84,14 @@ fn rgbd_vo_on_a_simulated_60_s_office_sequence_is_within_2_cm() {
     // the robot really travelled: drive path with turns, about 11 m in 60 s
     assert!(length > 10.0, "path {length} m");
     assert!(ate <= 0.02, "ATE RMSE {ate} m > 0.02 m");
+    // the map file holds the session's keyframes, each with its points
+    let file = slamkit_slam::map_file::MapFile::load(&map).unwrap();
+    let keyframes = report["map"]["keyframes"].as_u64().unwrap() as usize;
+    assert!(keyframes > 100, "{keyframes} keyframes");
+    assert_eq!(file.header.keyframes, keyframes);
+    assert_eq!(file.header.rig, slamkit_slam::map_file::Rig::Rgbd);
+    let visual =
+        slamkit_slam::visual::VisualMap::from_map_file(&file, slamkit_slam::map_file::Rig::Rgbd)
+            .unwrap();
+    assert!(visual.keyframes.iter().all(|k| !k.points.is_empty()));
 }

@@ -4,12 +4,15 @@
 //! A reader lists the frames (timestamps and file paths) up front and checks the metadata;
 //! images are decoded only when a frame is loaded, so a sequence of thousands of frames opens
 //! in milliseconds and a corrupt image costs that frame only (the caller skips and counts it).
+//! [`Dataset::observations`] makes a dataset a source of [`Observation`]s like any other (a
+//! bag, a live camera, the simulator), so a session runs the same on all of them.
 
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
 use slamkit_core::camera::{Distortion, Intrinsics, PinholeCamera};
 use slamkit_core::image::{GrayImage, Image, RgbImage};
+use slamkit_core::observation::{self, Observation};
 use slamkit_core::{Pose3, Trajectory};
 
 use crate::error::IoError;
@@ -213,6 +216,51 @@ impl Dataset {
         self.len() == 0
     }
 
+    /// The dataset folder.
+    pub fn root(&self) -> &Path {
+        match self {
+            Self::Rgbd(s) => &s.root,
+            Self::Stereo(s) => &s.root,
+        }
+    }
+
+    /// Frame `index` decoded into an [`Observation`] (`Rgbd` or `Stereo`); `None` past the
+    /// last frame.
+    ///
+    /// # Errors
+    /// The [`IoError`] of an image that cannot be read or decoded, naming the file.
+    pub fn observation(&self, index: usize) -> Option<Result<Observation, IoError>> {
+        Some(match self {
+            Self::Rgbd(s) => {
+                let frame = s.frames.get(index)?;
+                s.load(frame).map(|i| {
+                    Observation::Rgbd(observation::RgbdFrame {
+                        timestamp: frame.timestamp,
+                        color: i.color,
+                        depth_m: i.depth_m,
+                    })
+                })
+            }
+            Self::Stereo(s) => {
+                let frame = s.frames.get(index)?;
+                s.load(frame).map(|i| {
+                    Observation::Stereo(observation::StereoFrame {
+                        timestamp: frame.timestamp,
+                        left: i.left,
+                        right: i.right,
+                    })
+                })
+            }
+        })
+    }
+
+    /// Every frame in order, each decoded when the iterator reaches it (so decoding can run on
+    /// its own thread, ahead of the consumer). A frame that cannot be decoded is an `Err` item
+    /// and the iteration goes on with the next.
+    pub fn observations(&self) -> impl Iterator<Item = Result<Observation, IoError>> + Send + '_ {
+        (0..self.len()).map_while(|index| self.observation(index))
+    }
+
     /// Frame timestamps \[s\], in order.
     pub fn timestamps(&self) -> Vec<f64> {
         match self {
@@ -231,13 +279,9 @@ impl Dataset {
 
     /// Writes the ground truth as a TUM trajectory file; an error when there is none.
     pub fn write_ground_truth_tum(&self, path: &Path) -> Result<(), IoError> {
-        let root = match self {
-            Self::Rgbd(s) => &s.root,
-            Self::Stereo(s) => &s.root,
-        };
-        let gt = self
-            .ground_truth()
-            .ok_or_else(|| IoError::invalid(root.display(), "the dataset has no ground truth"))?;
+        let gt = self.ground_truth().ok_or_else(|| {
+            IoError::invalid(self.root().display(), "the dataset has no ground truth")
+        })?;
         write_tum(path, gt)
     }
 }

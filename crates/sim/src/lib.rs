@@ -11,6 +11,8 @@
 //!   [`flow`] (downward optical-flow velocity),
 //!   [`camera`] (RGB-D: colour and Kinect-like depth) and [`stereo`] (a rectified grey pair),
 //!   both ray-cast per pixel: [`Simulation::rgbd_frame`], [`Simulation::stereo_frame`].
+//! * [`ground_robot`]: a ground robot driven by velocity commands (closed loops), with its
+//!   camera, collisions and the world rasterised for scoring.
 //! * [`texture`]: procedural surface textures (checkerboards, hash-noise blobs) fixed to the
 //!   world, so camera images have features to track.
 //! * [`relations`]: pairs of scans for benchmark relations files.
@@ -36,6 +38,7 @@ pub mod attitude;
 pub mod camera;
 pub mod error;
 pub mod flow;
+pub mod ground_robot;
 pub mod lidar;
 pub mod motion;
 pub mod odometry;
@@ -51,6 +54,7 @@ pub use attitude::{AttitudeConfig, AttitudeReading, GyroConfig, YawGyro};
 pub use camera::{CameraMount, RgbdCameraConfig, RgbdFrame, View, TUM_FR1_INTRINSICS};
 pub use error::SimError;
 pub use flow::{FlowReading, OpticalFlowConfig};
+pub use ground_robot::GroundRobot;
 pub use lidar::Lidar2dConfig;
 pub use motion::{DiffDriveConfig, DroneConfig, RobotState, WaypointMotion};
 pub use odometry::{OdometryConfig, OdometrySimulator};

@@ -23,4 +23,19 @@ pub enum SlamError {
     /// A map algorithm refused its input or configuration.
     #[error(transparent)]
     Grid(#[from] slamkit_map::MapError),
+    /// Visual odometry refused its configuration.
+    #[error(transparent)]
+    Vo(#[from] slamkit_vo::VoError),
+    /// A planner, tracker or gate refused its input or configuration.
+    #[error(transparent)]
+    Nav(#[from] slamkit_nav::NavError),
+    /// The simulator refused its world or configuration.
+    #[error(transparent)]
+    Sim(#[from] slamkit_sim::SimError),
+    /// A navigation goal that cannot be reached.
+    #[error("goal {0}")]
+    Goal(String),
+    /// A worker thread could not start, or died.
+    #[error("thread: {0}")]
+    Thread(String),
 }

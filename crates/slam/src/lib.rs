@@ -13,16 +13,24 @@
 //! * [`map_file`]: the `.skmap` container: header, sections, checksum, atomic writes.
 //! * [`lidar`]: [`LidarSlam`], 2D lidar SLAM (ICP-SLAM or a particle filter) and localisation in
 //!   a saved map.
+//! * [`visual`]: [`VisualSlam`], visual odometry of an RGB-D or stereo camera as a session, and
+//!   [`visual::run`], which overlaps decoding and frame preparation with tracking.
+//! * [`ground_robot`]: [`GroundRobotNav`], a ground robot's camera session, floor grid, planner
+//!   and path tracker; its closed loop in the simulator.
 //!
 //! Nothing in this crate prints, reads arguments or exits the process.
 
 pub mod collator;
 mod error;
+pub mod ground_robot;
 pub mod lidar;
 pub mod map_file;
 pub mod session;
+pub mod visual;
 
 pub use collator::Collator;
 pub use error::SlamError;
+pub use ground_robot::GroundRobotNav;
 pub use lidar::{LidarMap, LidarMethod, LidarSlam, LidarSlamConfig};
 pub use session::{MapChange, Session, TrackingStatus, Update};
+pub use visual::VisualSlam;

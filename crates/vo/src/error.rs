@@ -26,12 +26,6 @@ pub enum VoError {
         /// The cause.
         source: std::io::Error,
     },
-    /// The dataset has no frame.
-    #[error("the dataset {path} has no frame")]
-    EmptyDataset {
-        /// The dataset folder.
-        path: String,
-    },
 }
 
 impl VoError {

@@ -1,4 +1,4 @@
-//! Stage 2 of the pipeline: a decoded frame becomes a [`PreparedFrame`] — grey image (CLAHE
+//! The first half of a frame's work: a decoded frame becomes a [`PreparedFrame`] — grey image (CLAHE
 //! on CIELAB L for colour input when configured), darkness check, the depth source (registered
 //! depth image or the right image), the KLT pyramid or ORB features, and the detected features
 //! lifted to 3D.
@@ -8,7 +8,6 @@ use std::sync::Arc;
 use nalgebra::{Point2, Point3};
 use slamkit_core::camera::Intrinsics;
 use slamkit_core::image::{GrayImage, Image, RgbImage};
-use slamkit_io::{RgbdImages, StereoImages};
 use slamkit_vision::color::{rgb_to_gray, rgb_to_lab_planes};
 use slamkit_vision::{shi_tomasi, Clahe, Descriptor, KltPyramid, Orb, StereoPair};
 
@@ -39,24 +38,6 @@ pub enum SensorImages {
         /// Right image.
         right: GrayImage,
     },
-}
-
-impl From<RgbdImages> for SensorImages {
-    fn from(i: RgbdImages) -> Self {
-        Self::Rgbd {
-            color: i.color,
-            depth_m: i.depth_m,
-        }
-    }
-}
-
-impl From<StereoImages> for SensorImages {
-    fn from(i: StereoImages) -> Self {
-        Self::Stereo {
-            left: i.left,
-            right: i.right,
-        }
-    }
 }
 
 /// The camera rig: what the tracked image's pixels mean and where depth comes from.

@@ -1,4 +1,4 @@
-//! Stage 3 of the pipeline: the motion of each frame against its reference, and the
+//! The second half of a frame's work: the motion of each frame against its reference, and the
 //! reference's upkeep.
 //!
 //! Frame to frame, the reference is the last successfully tracked frame; with the local map
@@ -33,8 +33,6 @@ type Match = (
 /// Why a frame could not be tracked.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub enum FailReason {
-    /// The images could not be read or decoded.
-    Unreadable(String),
     /// The images do not have the sizes of the calibration or of each other.
     SizeMismatch,
     /// The mean grey level is below the configured minimum.
@@ -108,6 +106,8 @@ pub struct Odometry {
     map: LocalMap,
     failures_in_row: usize,
     tracked: usize,
+    /// Key frames added to the local map so far.
+    keyframes: usize,
     /// `previous_from_current` of the last step between consecutive tracked frames: the
     /// constant-velocity prediction.
     velocity: Pose3,
@@ -125,6 +125,7 @@ impl Odometry {
             map: LocalMap::new(),
             failures_in_row: 0,
             tracked: 0,
+            keyframes: 0,
             velocity: Pose3::identity(),
             last_index: None,
         }
@@ -140,7 +141,22 @@ impl Odometry {
         self.map.len()
     }
 
-    /// Records a frame that failed before tracking (unreadable, too dark): the pose stays.
+    /// Key frames added to the local map since the start.
+    pub fn keyframes(&self) -> usize {
+        self.keyframes
+    }
+
+    /// The reference frame's features with depth (the last tracked or initialised frame):
+    /// camera-frame points \[m\] and ORB descriptors (`None` for KLT corners).
+    pub fn reference_points(&self) -> Vec<(Point3<f64>, Option<Descriptor>)> {
+        self.reference
+            .iter()
+            .flat_map(|r| r.features.iter().map(|f| (f.point, f.descriptor)))
+            .collect()
+    }
+
+    /// Records a frame that failed before tracking (too dark, sizes that do not fit): the pose
+    /// stays.
     pub fn skip(&mut self, reason: FailReason) -> FrameStatus {
         self.failures_in_row += 1;
         FrameStatus::Failed(reason)
@@ -532,6 +548,7 @@ impl Odometry {
             for (f, id) in features.iter_mut().zip(ids) {
                 f.landmark = Some(id);
             }
+            self.keyframes += 1;
         }
         let lm = &self.config.local_map;
         self.map.prune(index, lm.window_frames, lm.max_landmarks);

@@ -1,9 +1,9 @@
 //! `slamkit nav`: the closed navigation loop in the simulator.
 //!
 //! The simulated differential-drive robot drives from the start of the world's drive path to
-//! the goal ([`closed_loop`]): localised by RGB-D visual odometry, mapping the depth images into
-//! a floor grid ([`camera_slam`]), re-planning every 1.5 s on it, following the path with the
-//! carrot tracker.
+//! the goal ([`slamkit_slam::ground_robot::closed_loop`]): the [`slamkit_slam::GroundRobotNav`]
+//! session localises it by RGB-D visual odometry, maps the depth images into a floor grid,
+//! re-plans every 1.5 s on it and follows the path with the carrot tracker.
 //! Writes in `--out`: `trajectory.tum` (estimated poses), `groundtruth.tum` (true poses),
 //! `frames.csv` (per camera frame: true and estimated pose, VO's status, inliers and failure),
 //! `map.png` (the robot's map, inflated obstacles shaded, every plan in red, the true driven
@@ -11,14 +11,10 @@
 //! `metrics.reached`, `metrics.time_s`, `metrics.path_length_m`, `metrics.optimal_length_m`,
 //! `metrics.max_cross_track_m`, ...).
 
-pub mod camera_slam;
-pub mod closed_loop;
-
 use crate::commands::plan::{parse_xy, save_rgb_png};
 use crate::config_file::config_over;
 use crate::output::{peak_rss_bytes, prepare_out_dir, timings_json, write_report};
 use anyhow::Context;
-use closed_loop::{run_nav_loop, FrameRecord, NavLoopConfig, NavOutcome};
 use nalgebra::Point2;
 use serde_json::json;
 use slamkit_core::image::RgbImage;
@@ -26,6 +22,9 @@ use slamkit_core::Pose2;
 use slamkit_io::write_tum;
 use slamkit_nav::render::{draw_path, pixel_of};
 use slamkit_sim::World;
+use slamkit_slam::ground_robot::closed_loop::{
+    run_nav_loop, FrameRecord, NavLoopConfig, NavOutcome,
+};
 use slamkit_vo::FrameStatus;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -154,7 +153,7 @@ fn write_map_png(path: &Path, outcome: &NavOutcome, config: &NavLoopConfig) -> a
     let grid = &outcome.grid;
     let mut image = draw_path(
         grid,
-        &grid.inflated(config.inflate_cells(config.grid.resolution_m)),
+        &grid.inflated(config.nav().inflate_cells(config.grid.resolution_m)),
         &[],
     );
     let mut mark = |points: &mut dyn Iterator<Item = Point2<f64>>, colour: [u8; 3]| {

@@ -1,13 +1,17 @@
-//! `slamkit vo`: visual odometry on an RGB-D or stereo dataset folder, with the trajectory,
-//! ground truth, point cloud and report written to the output folder.
+//! `slamkit vo`: visual odometry on an RGB-D or stereo dataset folder, through the
+//! [`VisualSlam`] session (started at the identity), with the trajectory, ground truth, point
+//! cloud and report written to the output folder, and with `--save-map` the keyframes as a
+//! `.skmap` file.
 
 use crate::config_file::config_over;
 use crate::output::{peak_rss_bytes, prepare_out_dir, progress_bar, timings_json, write_report};
 use anyhow::Context;
 use serde_json::json;
 use slamkit_io::{Dataset, DatasetFormat as IoFormat};
+use slamkit_slam::visual::{self, PointMapping, RunOptions, VisualSlam};
+use slamkit_slam::Session;
 use slamkit_vo::depth::DepthRegistration;
-use slamkit_vo::{evaluate, FrontendKind, RunOptions, VoConfig};
+use slamkit_vo::{evaluate, FrontendKind, VoConfig};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -53,6 +57,9 @@ pub struct VoArgs {
     /// Play the dataset at its frame rate and drop the frames the pipeline cannot take.
     #[arg(long)]
     pub realtime: bool,
+    /// Write the map (keyframe poses, their 3D points and ORB descriptors) to this `.skmap`.
+    #[arg(long)]
+    pub save_map: Option<PathBuf>,
     /// Output folder.
     #[arg(long, default_value = "out/vo")]
     pub out: PathBuf,
@@ -69,12 +76,37 @@ pub fn run(args: &VoArgs) -> anyhow::Result<()> {
     let out = prepare_out_dir(&args.out)?;
     let dataset = Dataset::open(&args.dataset_dir, io_format(format))
         .with_context(|| format!("opening {}", args.dataset_dir.display()))?;
+    anyhow::ensure!(
+        !dataset.is_empty(),
+        "{} holds no frame",
+        args.dataset_dir.display()
+    );
     let bar = progress_bar(dataset.len() as u64, "vo");
     let options = RunOptions {
         realtime: args.realtime,
     };
-    let result = slamkit_vo::run(&dataset, &config, options, || bar.inc(1))?;
+    let mapping = if args.realtime {
+        PointMapping::WhenIdle
+    } else {
+        PointMapping::EveryFrame
+    };
+    let mut session =
+        VisualSlam::new(&config, visual::rig_of(&dataset))?.with_point_map(mapping)?;
+    let result = visual::run(&mut session, dataset.observations(), options, |_| {
+        bar.inc(1)
+    })?;
     bar.finish_and_clear();
+    for line in &result.skipped {
+        eprintln!("skipped {line}");
+    }
+    if let Some(path) = &args.save_map {
+        Session::save(&session, path)?;
+    }
+    let keyframes = session.map().keyframes.len();
+    let session = session.finish()?;
+    let mut timings = result.timings.clone();
+    timings.merge(&session.timings);
+    let map = session.point_map.context("the session kept no point map")?;
 
     let traj_path = out.join("trajectory.tum");
     slamkit_io::trajectory_file::write_tum(&traj_path, &result.trajectory)?;
@@ -92,16 +124,31 @@ pub fn run(args: &VoArgs) -> anyhow::Result<()> {
         }
         None => json!(null),
     };
-    result.map.write_ply(&out.join("cloud.ply"))?;
+    map.write_ply(&out.join("cloud.ply"))?;
+    let s = &session.stats;
     let report = json!({
         "input": args.dataset_dir,
         "format": format!("{format:?}"),
         "realtime": args.realtime,
         "config": config,
-        "frames": result.stats,
-        "map": { "points": result.map.len(), "dropped_points": result.map.dropped() },
+        "frames": {
+            "frames": result.stats.frames,
+            "read": result.stats.read,
+            "dropped": result.stats.dropped,
+            "skipped": result.stats.skipped,
+            "unmapped": s.unmapped,
+            "processed": s.processed,
+            "failed": s.failed,
+            "initialisations": s.initialisations,
+        },
+        "map": {
+            "points": map.len(),
+            "dropped_points": map.dropped(),
+            "keyframes": keyframes,
+            "saved_to": args.save_map,
+        },
         "wall_seconds": started.elapsed().as_secs_f64(),
-        "timings_ms": timings_json(&result.timings),
+        "timings_ms": timings_json(&timings),
         "peak_rss_bytes": peak_rss_bytes(),
         "metrics": metrics,
         "frame_status": result.frames,
@@ -182,8 +229,8 @@ fn load_config(args: &VoArgs, format: DatasetFormat) -> anyhow::Result<VoConfig>
 fn print_summary(out: &Path, report: &serde_json::Value) {
     let f = &report["frames"];
     println!(
-        "vo: {} frames, {} processed, {} failed, {} dropped",
-        f["frames"], f["processed"], f["failed"], f["dropped"]
+        "vo: {} frames, {} processed, {} failed, {} dropped, {} skipped",
+        f["frames"], f["processed"], f["failed"], f["dropped"], f["skipped"]
     );
     if let Some(t) = report["timings_ms"].get("frame") {
         println!(

@@ -1,6 +1,6 @@
 //! The RGB-D visual odometry part of `slamkit demo`: the drone's flight seen by its simulated
 //! RGB-D camera, written as a TUM RGB-D folder (`rgbd/`), read back and run through
-//! [`slamkit_vo::run`] like any recorded sequence, and scored by ATE after SE(3) alignment
+//! the [`VisualSlam`] session like any recorded sequence, and scored by ATE after SE(3) alignment
 //! (Sturm et al., IROS 2012), the `slamkit vo` metric.
 //!
 //! To keep the demo under a minute the camera is smaller and slower than the default
@@ -16,7 +16,8 @@ use slamkit_eval::{ate, Alignment, AteResult, Pairing};
 use slamkit_io::tum_rgbd::{open, TumCamera, TumRgbdConfig};
 use slamkit_io::Dataset;
 use slamkit_sim::{sample_times, RgbdCameraConfig, SimConfig, Simulation, World};
-use slamkit_vo::{RunOptions, RunStats, VoConfig};
+use slamkit_slam::visual::{self, PointMapping, RunOptions, VisualSlam, VisualStats};
+use slamkit_vo::VoConfig;
 use std::path::{Path, PathBuf};
 
 /// Image size of the demo's camera relative to the default 640×480.
@@ -34,7 +35,7 @@ pub struct VoDemo {
     /// ATE after SE(3) alignment: statistics, per-pose errors, aligned positions.
     pub ate: AteResult,
     /// Frame counts of the VO run.
-    pub stats: RunStats,
+    pub stats: VisualStats,
     /// Render, write and VO timings \[ms\].
     pub timings: StageTimings,
     /// The camera used.
@@ -68,7 +69,7 @@ pub fn run_vo_demo(
     world: &World,
     seed: u64,
     out: &Path,
-    progress: impl Fn() + Send + Sync,
+    progress: impl Fn(),
 ) -> anyhow::Result<VoDemo> {
     let camera = demo_camera();
     let config = SimConfig {
@@ -90,13 +91,17 @@ pub fn run_vo_demo(
         .clone()
         .context("the simulated sequence has no ground truth")?;
     let dataset = Dataset::Rgbd(sequence);
-    let run = slamkit_vo::run(
-        &dataset,
-        &VoConfig::default(),
+    let mut session = VisualSlam::new(&VoConfig::default(), visual::rig_of(&dataset))?
+        .with_point_map(PointMapping::Off)?;
+    let run = visual::run(
+        &mut session,
+        dataset.observations(),
         RunOptions::default(),
-        progress,
+        |_| progress(),
     )?;
+    let session = session.finish()?;
     timings.merge(&run.timings);
+    timings.merge(&session.timings);
     let ate = ate(&truth, &run.trajectory, Pairing::default(), Alignment::Se3)
         .context("scoring visual odometry")?;
     slamkit_io::write_tum(&out.join("trajectory_vo.tum"), &run.trajectory)?;
@@ -117,7 +122,7 @@ pub fn run_vo_demo(
     Ok(VoDemo {
         title: "RGB-D visual odometry",
         ate,
-        stats: run.stats,
+        stats: session.stats,
         timings,
         camera,
         plot,

@@ -1,5 +1,7 @@
-//! Corrupt and missing images, all-zero depth and too-dark frames are failed frames of the
-//! run, never a panic or an error; the pose holds over them and tracking resumes after.
+//! Corrupt and missing images are skipped and counted by the run, all-zero depth and too-dark
+//! frames are failed frames of the session, never a panic or an error; the pose holds over
+//! them and tracking resumes after.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers fail loudly
 
 use std::path::Path;
 
@@ -7,7 +9,9 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use slamkit_core::camera::{Distortion, Intrinsics, PinholeCamera};
 use slamkit_io::{Dataset, RgbdFrame, RgbdSequence};
-use slamkit_vo::{run, FailReason, FrameStatus, RunOptions, TrackingMode, VoConfig};
+use slamkit_slam::visual::{self, RunOptions, VisualSlam};
+use slamkit_slam::TrackingStatus;
+use slamkit_vo::{FailReason, FrameStatus, TrackingMode, VoConfig};
 
 const W: u32 = 160;
 const H: u32 = 120;
@@ -84,35 +88,56 @@ fn bad_frames_fail_without_panic_and_tracking_resumes() {
             mode,
             ..VoConfig::default()
         };
-        let result = run(&dataset, &config, RunOptions::default(), || {}).unwrap();
-        let status: Vec<&FrameStatus> = result.frames.iter().map(|f| &f.status).collect();
-        assert_eq!(status.len(), 7, "{status:?}");
+        let mut session = VisualSlam::new(&config, visual::rig_of(&dataset)).unwrap();
+        let mut tracking = Vec::new();
+        let result = visual::run(
+            &mut session,
+            dataset.observations(),
+            RunOptions::default(),
+            |u| tracking.push(u.update.status),
+        )
+        .unwrap();
+        // the corrupt colour image and the missing depth image never reach the session
+        assert_eq!((result.stats.frames, result.stats.skipped), (7, 2));
         assert!(
-            matches!(status[0], FrameStatus::Initialised { .. }),
+            result.skipped[0].starts_with("frame 2: "),
+            "{:?}",
+            result.skipped
+        );
+        let status: Vec<(usize, &FrameStatus)> =
+            result.frames.iter().map(|f| (f.index, &f.status)).collect();
+        assert_eq!(status.len(), 5, "{status:?}");
+        assert!(
+            matches!(status[0], (0, FrameStatus::Initialised { .. })),
             "{status:?}"
         );
         assert!(
-            matches!(status[1], FrameStatus::Tracked { .. }),
+            matches!(status[1], (1, FrameStatus::Tracked { .. })),
             "{status:?}"
         );
         assert!(
-            matches!(status[2], FrameStatus::Failed(FailReason::Unreadable(_))),
+            matches!(status[2], (4, FrameStatus::Failed(_))),
             "{status:?}"
         );
         assert!(
-            matches!(status[3], FrameStatus::Failed(FailReason::Unreadable(_))),
-            "{status:?}"
-        );
-        assert!(matches!(status[4], FrameStatus::Failed(_)), "{status:?}");
-        assert!(
-            matches!(status[5], FrameStatus::Failed(FailReason::TooDark { .. })),
+            matches!(
+                status[3],
+                (5, FrameStatus::Failed(FailReason::TooDark { .. }))
+            ),
             "{status:?}"
         );
         assert!(
-            matches!(status[6], FrameStatus::Tracked { .. }),
+            matches!(status[4], (6, FrameStatus::Tracked { .. })),
             "{status:?}"
         );
-        assert_eq!(result.stats.failed, 4);
+        use TrackingStatus::{Predicted, Tracking};
+        assert_eq!(
+            tracking,
+            [Tracking, Tracking, Predicted, Predicted, Tracking]
+        );
+        let output = session.finish().unwrap();
+        assert_eq!((output.stats.failed, output.stats.processed), (2, 3));
+        assert!(!output.point_map.unwrap().is_empty());
         // the camera did not move: every pose stays at the first
         for p in &result.trajectory.poses {
             assert!(p.pose.translation.vector.norm() < 1e-6, "{:?}", p.pose);

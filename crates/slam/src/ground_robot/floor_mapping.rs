@@ -1,6 +1,6 @@
-//! Localisation and mapping of the closed loop from the robot's RGB-D camera.
+//! Localisation and mapping of a ground robot from its RGB-D camera.
 //!
-//! Each frame goes through RGB-D visual odometry ([`slamkit_vo`]: KLT features lifted by
+//! Each frame goes through [`VisualSlam`] (RGB-D visual odometry: KLT features lifted by
 //! depth, RANSAC + Gauss–Newton motion against the local map), whose camera pose gives the
 //! base pose through the known camera mount. The frame's depth (every `depth_step_px`-th
 //! pixel) is then inserted into a floor grid ([`FloorGrid`], Bayesian log-odds with Bresenham
@@ -18,24 +18,25 @@
 //! is (x, y) with z up, so points go through [`map_from_world`] and the grid's cells are the
 //! world's (x, y) cells.
 //!
-//! Mapping (and the loop's planning) pause while the camera's angular rate, from consecutive
-//! VO poses, exceeds the gate's limits ([`MotionGate`]); a frame VO fails on gives no pose, and
-//! the tracker then commands zero.
+//! Mapping (and planning) pause while the camera's angular rate, from consecutive VO poses,
+//! exceeds the gate's limits ([`MotionGate`]); a frame VO fails on gives no pose.
 
-use anyhow::Context;
 use nalgebra::{Matrix3, Point2, Rotation3, UnitQuaternion};
 use serde::Serialize;
-use slamkit_core::image::{Image, RgbImage};
-use slamkit_core::pose::pose3_to_pose2;
+use slamkit_core::camera::Intrinsics;
+use slamkit_core::observation::{Observation, RgbdFrame};
+use slamkit_core::pose::{pose2_to_pose3, pose3_to_pose2};
 use slamkit_core::{Pose2, Pose3, StageTimings};
 use slamkit_map::floor_grid::{FloorGrid, FloorGridConfig, FloorGridMethod};
 use slamkit_map::TriGrid;
 use slamkit_nav::gating::angular_rate;
 use slamkit_nav::{MotionGate, MotionGateConfig};
-use slamkit_sim::RgbdCameraConfig;
-use slamkit_vo::frame::{Preprocessor, Rig, SensorImages};
-use slamkit_vo::{FrameStatus, Odometry, VoConfig};
+use slamkit_vo::frame::Rig;
+use slamkit_vo::{FrameStatus, VoConfig};
 use std::time::Instant;
+
+use crate::visual::{PointMapping, VisualSlam};
+use crate::SlamError;
 
 /// `map_from_world`: the world's (x, y, z-up) axes onto the floor grid's (x, z, −y).
 pub fn map_from_world() -> Pose3 {
@@ -53,11 +54,11 @@ pub fn map_from_world() -> Pose3 {
 /// Frame counters of the camera.
 #[derive(Debug, Clone, Copy, Default, Serialize)]
 pub struct CameraStats {
-    /// Frames rendered.
+    /// Frames received.
     pub frames: usize,
     /// Frames VO tracked (or re-initialised on).
     pub tracked: usize,
-    /// Frames VO failed on (no pose: the tracker stopped).
+    /// Frames VO failed on (no pose).
     pub failed: usize,
     /// VO (re-)initialisations.
     pub initialisations: usize,
@@ -65,109 +66,108 @@ pub struct CameraStats {
     pub gated: usize,
 }
 
+/// The camera of a ground robot: intrinsics (depth registered to colour) and mounting.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MountedCamera {
+    /// Intrinsics of the colour and (registered) depth images.
+    pub intrinsics: Intrinsics,
+    /// Where the camera sits on the base.
+    pub base_from_camera: Pose3,
+}
+
+/// A frame's outcome.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrameOutcome {
+    /// Estimated planar `world_from_base`; `None` when VO failed on the frame.
+    pub world_from_base: Option<Pose2>,
+    /// What VO made of the frame.
+    pub status: FrameStatus,
+    /// Mapping ran, and planning may.
+    pub gate_open: bool,
+}
+
 /// VO, the floor grid and the motion gate.
-pub struct CameraSlam {
-    preprocessor: Preprocessor,
-    odometry: Odometry,
-    base_from_camera: Pose3,
+#[derive(Debug)]
+pub(super) struct FloorMapping {
+    vo: VisualSlam,
+    camera: MountedCamera,
     base_height_m: f64,
-    intrinsics: slamkit_core::camera::Intrinsics,
     depth_step_px: usize,
     grid: FloorGrid,
     gate: MotionGate,
     previous: Option<(f64, Pose3)>,
-    /// Frame counters.
-    pub stats: CameraStats,
+    stats: CameraStats,
 }
 
-/// A frame's outcome: the estimated `world_from_base` (`None` when VO lost it, with the
-/// reason) and whether the gate let it be mapped (and planning run).
-pub struct FrameOutcome {
-    /// Estimated planar pose of the base in the world.
-    pub world_from_base: Option<Pose2>,
-    /// What VO made of the frame.
-    pub status: FrameStatus,
-    /// Mapping and planning may run.
-    pub gate_open: bool,
-}
-
-impl CameraSlam {
+impl FloorMapping {
     /// Starts at the known `world_from_base` with an empty floor grid covering the floor
     /// rectangle `[min, max]` (world x, y).
-    ///
-    /// # Errors
-    /// An invalid VO, grid or gate configuration.
-    pub fn new(
-        camera: &RgbdCameraConfig,
+    pub(super) fn new(
+        camera: MountedCamera,
         vo: &VoConfig,
-        grid: &FloorGridConfig,
-        gate: &MotionGateConfig,
+        (grid, gate): (&FloorGridConfig, &MotionGateConfig),
         depth_step_px: usize,
         world_from_base: &Pose3,
-        bounds: [Point2<f64>; 2],
-    ) -> anyhow::Result<Self> {
+        [min, max]: [Point2<f64>; 2],
+    ) -> Result<Self, SlamError> {
         let k = camera.intrinsics;
-        let preprocessor = Preprocessor::new(vo, Rig::Rgbd { color: k, depth: k })
-            .context("visual odometry configuration")?;
-        let base_from_camera = camera.mount.base_from_camera();
-        let [min, max] = bounds;
+        let visual = VisualSlam::starting_at(
+            vo,
+            Rig::Rgbd { color: k, depth: k },
+            world_from_base * camera.base_from_camera,
+        )?
+        .with_point_map(PointMapping::Off)?;
         let cells = |span: f64| (span / grid.resolution_m).ceil().max(1.0) as usize;
         let floor = FloorGrid::new(
             cells(max.x - min.x),
             cells(max.y - min.y),
             min,
             grid.clone(),
-        )
-        .context("floor grid configuration")?;
+        )?;
         Ok(Self {
-            preprocessor,
-            odometry: Odometry::new(vo, world_from_base * base_from_camera),
-            base_from_camera,
+            vo: visual,
+            camera,
             base_height_m: world_from_base.translation.z,
-            intrinsics: k,
             depth_step_px,
             grid: floor,
-            gate: MotionGate::new(gate.clone()).context("motion gate configuration")?,
+            gate: MotionGate::new(gate.clone())?,
             previous: None,
             stats: CameraStats::default(),
         })
     }
 
-    /// Localises with frame `index` taken at `t`, then maps its depth when the gate is open.
-    pub fn process(
+    /// Localises with `frame`, then maps its depth when the gate is open; VO's time goes to
+    /// `vo` in `timings`, the grid's to `map`. `None` for a frame VO does not take (not an
+    /// RGB-D frame of this camera).
+    pub(super) fn process(
         &mut self,
-        index: usize,
-        t: f64,
-        color: RgbImage,
-        depth_m: &Image<f32>,
+        frame: RgbdFrame,
         timings: &mut StageTimings,
-    ) -> FrameOutcome {
-        self.stats.frames += 1;
+    ) -> Option<FrameOutcome> {
+        let t = frame.timestamp;
+        let depth_m = frame.depth_m.clone();
         let started = Instant::now();
-        let images = SensorImages::Rgbd {
-            color,
-            depth_m: depth_m.clone(),
-        };
-        let status = match self.preprocessor.prepare(index, t, images) {
-            Ok(frame) => self.odometry.track(frame),
-            Err(reason) => self.odometry.skip(reason),
-        };
+        let visual = self.vo.process(Observation::Rgbd(frame));
         timings.record_since("vo", started);
-        match status {
-            FrameStatus::Failed(_) => {
+        let visual = visual?;
+        self.stats.frames += 1;
+        let status = visual.frame;
+        let world_from_camera = match (&status, visual.update.pose) {
+            (FrameStatus::Initialised { .. } | FrameStatus::Tracked { .. }, Some(pose)) => pose,
+            _ => {
                 self.stats.failed += 1;
                 self.previous = None;
-                return FrameOutcome {
+                return Some(FrameOutcome {
                     world_from_base: None,
                     status,
                     gate_open: false,
-                };
+                });
             }
-            FrameStatus::Initialised { .. } => self.stats.initialisations += 1,
-            FrameStatus::Tracked { .. } => {}
+        };
+        if matches!(status, FrameStatus::Initialised { .. }) {
+            self.stats.initialisations += 1;
         }
         self.stats.tracked += 1;
-        let world_from_camera = self.odometry.pose();
         let rate = self
             .previous
             .and_then(|(t0, p0)| angular_rate(&p0, &world_from_camera, t - t0));
@@ -177,15 +177,15 @@ impl CameraSlam {
             None => self.gate.is_open(),
         };
         self.previous = Some((t, world_from_camera));
-        let world_from_base =
-            pose3_to_pose2(&(world_from_camera * self.base_from_camera.inverse()));
+        let base_from_camera = self.camera.base_from_camera;
+        let world_from_base = pose3_to_pose2(&(world_from_camera * base_from_camera.inverse()));
         if gate_open {
             let started = Instant::now();
             let map_from_camera =
-                map_from_world() * self.planar(&world_from_base) * self.base_from_camera;
+                map_from_world() * self.planar(&world_from_base) * base_from_camera;
             self.grid.insert_depth(
-                depth_m,
-                &self.intrinsics,
+                &depth_m,
+                &self.camera.intrinsics,
                 &map_from_camera,
                 self.depth_step_px,
             );
@@ -193,23 +193,28 @@ impl CameraSlam {
         } else {
             self.stats.gated += 1;
         }
-        FrameOutcome {
+        Some(FrameOutcome {
             world_from_base: Some(world_from_base),
             status,
             gate_open,
-        }
+        })
     }
 
     /// The 3D base pose of a planar one at the base's known height.
     fn planar(&self, pose: &Pose2) -> Pose3 {
-        let mut p = slamkit_core::pose::pose2_to_pose3(pose);
+        let mut p = pose2_to_pose3(pose);
         p.translation.z = self.base_height_m;
         p
     }
 
     /// The map so far as a tri-state grid over the world's (x, y).
-    pub fn grid(&self) -> TriGrid {
+    pub(super) fn grid(&self) -> TriGrid {
         self.grid.to_tri_grid(FloorGridMethod::LogOdds)
+    }
+
+    /// Frame counters.
+    pub(super) fn stats(&self) -> CameraStats {
+        self.stats
     }
 }
 

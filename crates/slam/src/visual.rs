@@ -1,0 +1,370 @@
+//! [`VisualSlam`]: the online session of an RGB-D or stereo camera, over the visual odometry of
+//! `slamkit_vo` (KLT or ORB features, RANSAC + Gauss–Newton motion, local map of key frames).
+//!
+//! A frame's work has two halves: [`FramePreparer::prepare`] (grey image, features and their
+//! depth) needs nothing of the tracking state, [`VisualSlam::track`] (motion against the local
+//! map) needs all of it. [`VisualSlam::push`] does both in turn; [`pipeline::run`] prepares the
+//! next frame on another thread while the session tracks the current one, and decodes images
+//! on a third, as a live camera driver would. The world point map is filled on a thread of its
+//! own ([`point_map`]).
+//!
+//! Poses are `world_from_camera` of the rig's reference camera: the depth camera of an RGB-D
+//! rig (the dataset's camera; the tracked colour camera is moved onto it when depth is
+//! registered to colour by the session), the left camera of a stereo rig. The world is wherever
+//! the session was told the first frame is ([`VisualSlam::starting_at`], identity by default),
+//! never the dataset's ground truth.
+//!
+//! Basic settings for a new camera: the rig (intrinsics, stereo baseline; depth arrives in
+//! metres), [`VoConfig::frontend`] and, for a colour camera whose depth is not registered to it,
+//! [`VoConfig::register_depth`]; the rest of [`VoConfig`] is advanced.
+
+pub mod keyframes;
+pub mod pipeline;
+pub mod point_map;
+mod prepare;
+
+pub use keyframes::{Keyframe, VisualMap};
+pub use pipeline::{run, FrameRecord, RunOptions, RunStats, VisualRun};
+pub use point_map::PointMapping;
+pub use prepare::{FramePreparer, PreparedObservation};
+
+use cpu_time::ThreadTime;
+use slamkit_core::{Observation, Pose3, StageTimings};
+use slamkit_io::Dataset;
+use slamkit_vo::frame::Rig;
+use slamkit_vo::{FrameStatus, Odometry, TrackingMode, VoConfig, VoxelMap};
+use std::path::Path;
+
+use crate::map_file;
+use crate::session::{MapChange, Session, TrackingStatus, Update};
+use crate::SlamError;
+use point_map::PointMapper;
+use prepare::Prepared;
+
+/// Visual odometry as an online session.
+///
+/// ```
+/// use slamkit_core::camera::Intrinsics;
+/// use slamkit_core::image::{Image, RgbImage};
+/// use slamkit_core::observation::{Observation, RgbdFrame};
+/// use slamkit_slam::visual::{PointMapping, VisualSlam};
+/// use slamkit_slam::TrackingStatus;
+/// use slamkit_vo::frame::Rig;
+/// use slamkit_vo::VoConfig;
+///
+/// // a 160×120 camera looking at a checkerboard wall 2 m away
+/// let k = Intrinsics::from_array([150.0, 150.0, 79.5, 59.5], 160, 120);
+/// let rig = Rig::Rgbd { color: k, depth: k };
+/// let mut session = VisualSlam::new(&VoConfig::default(), rig)?.with_point_map(PointMapping::Off)?;
+/// let checker = |i: usize| if (i % 160 / 10 + i / 160 / 10) % 2 == 0 { 40 } else { 210 };
+/// let texture: Vec<[u8; 3]> = (0..160 * 120).map(|i| [checker(i); 3]).collect();
+/// for i in 0..3 {
+///     let color = RgbImage::from_vec(160, 120, texture.clone()).expect("160×120 pixels");
+///     let depth_m = Image::filled(160, 120, 2.0f32);
+///     let frame = RgbdFrame { timestamp: i as f64 / 30.0, color, depth_m };
+///     let update = session.push(Observation::Rgbd(frame)).expect("a camera frame");
+///     // the camera did not move: the pose stays at the start (identity)
+///     assert_eq!(update.status, TrackingStatus::Tracking);
+///     assert!(update.pose.expect("a pose").translation.vector.norm() < 1e-3);
+/// }
+/// let stats = session.stats();
+/// assert_eq!((stats.frames, stats.processed, stats.initialisations), (3, 3, 1));
+/// # Ok::<(), slamkit_slam::SlamError>(())
+/// ```
+#[derive(Debug)]
+pub struct VisualSlam {
+    config: VoConfig,
+    rig: Rig,
+    preparer: FramePreparer,
+    odometry: Odometry,
+    /// `tracked_from_camera`: the rig's reference camera seen from the tracked one.
+    tracked_from_camera: Pose3,
+    point_map: PointMapper,
+    timings: StageTimings,
+    stats: VisualStats,
+    /// Failed frames since the last tracked or initialised one.
+    failures_in_row: usize,
+    /// Index of the next frame [`Self::push`] prepares (one past the last tracked).
+    next_index: usize,
+    /// The keyframes for the map file.
+    map: VisualMap,
+}
+
+/// Frame counters of a [`VisualSlam`] session.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+pub struct VisualStats {
+    /// Camera frames of the rig's kind received.
+    pub frames: usize,
+    /// Frames tracked or used to (re)start tracking.
+    pub processed: usize,
+    /// Frames that could not be tracked (too dark, no depth, no motion found).
+    pub failed: usize,
+    /// Tracking (re)starts.
+    pub initialisations: usize,
+    /// Observations the session does not use (other sensors, another kind of camera).
+    pub ignored: usize,
+    /// Tracked frames left out of the point map because its thread was busy
+    /// ([`PointMapping::WhenIdle`]).
+    pub unmapped: usize,
+}
+
+/// What [`VisualSlam::track`] made of a camera frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VisualUpdate {
+    /// The session's answer.
+    pub update: Update,
+    /// Position of the frame in its source.
+    pub index: usize,
+    /// Visual odometry's own account of the frame (inliers, or why it failed).
+    pub frame: FrameStatus,
+}
+
+/// What a finished session leaves.
+#[derive(Debug)]
+pub struct VisualOutput {
+    /// The world point map (`None` with [`PointMapping::Off`]).
+    pub point_map: Option<VoxelMap>,
+    /// CPU time per stage \[ms\]: `prepare`, `track`, `frame` (the two together) and `map`.
+    pub timings: StageTimings,
+    /// Frame counters.
+    pub stats: VisualStats,
+}
+
+impl VisualSlam {
+    /// A session for `rig` starting at the identity, filling a point map from every frame.
+    ///
+    /// # Errors
+    /// [`SlamError::Vo`] for an invalid configuration, [`SlamError::Thread`] when the mapping
+    /// thread cannot start.
+    pub fn new(config: &VoConfig, rig: Rig) -> Result<Self, SlamError> {
+        Self::starting_at(config, rig, Pose3::identity())
+    }
+
+    /// A session whose first frame is at `world_from_camera` (the rig's reference camera).
+    ///
+    /// # Errors
+    /// As [`Self::new`].
+    pub fn starting_at(
+        config: &VoConfig,
+        rig: Rig,
+        world_from_camera: Pose3,
+    ) -> Result<Self, SlamError> {
+        let preparer = FramePreparer::new(config, rig.clone())?;
+        // the tracked (colour) camera vs the rig's reference (depth) camera, for depth the
+        // session registers to colour
+        let tracked_from_camera = config
+            .register_depth
+            .as_ref()
+            .map_or(Pose3::identity(), |r| r.color_from_depth());
+        Ok(Self {
+            odometry: Odometry::new(config, world_from_camera * tracked_from_camera.inverse()),
+            point_map: PointMapper::start(PointMapping::default(), config.voxel_map.clone())?,
+            config: config.clone(),
+            rig,
+            preparer,
+            tracked_from_camera,
+            timings: StageTimings::default(),
+            stats: VisualStats::default(),
+            failures_in_row: 0,
+            next_index: 0,
+            map: VisualMap::default(),
+        })
+    }
+
+    /// The same session building its point map the way `mode` says.
+    ///
+    /// # Errors
+    /// [`SlamError::Thread`] when the mapping thread cannot start.
+    pub fn with_point_map(mut self, mode: PointMapping) -> Result<Self, SlamError> {
+        // the default thread has seen no frame yet: nothing is lost by ending it
+        self.point_map.finish()?;
+        self.point_map = PointMapper::start(mode, self.config.voxel_map.clone())?;
+        Ok(self)
+    }
+
+    /// A preparer for this session's frames, to run on another thread ([`pipeline::run`]).
+    ///
+    /// # Errors
+    /// As [`Self::new`] (the configuration was checked then, so only in theory).
+    pub fn preparer(&self) -> Result<FramePreparer, SlamError> {
+        FramePreparer::new(&self.config, self.rig.clone())
+    }
+
+    /// Takes one observation: a frame of the rig's camera is prepared and tracked; anything
+    /// else is counted and ignored (`None`).
+    pub fn push(&mut self, observation: Observation) -> Option<Update> {
+        self.process(observation).map(|u| u.update)
+    }
+
+    /// [`Self::push`] with visual odometry's own account of the frame.
+    pub fn process(&mut self, observation: Observation) -> Option<VisualUpdate> {
+        let index = self.next_index;
+        let prepared = self.preparer.prepare(index, observation);
+        self.track(prepared)
+    }
+
+    /// Tracks a frame prepared by a [`FramePreparer`] of this session (frames in order).
+    pub fn track(&mut self, prepared: PreparedObservation) -> Option<VisualUpdate> {
+        let Some(Prepared {
+            index,
+            timestamp,
+            frame,
+            prepare_ms,
+        }) = prepared.0
+        else {
+            self.stats.ignored += 1;
+            return None;
+        };
+        self.next_index = self.next_index.max(index + 1);
+        self.stats.frames += 1;
+        let start = ThreadTime::now();
+        let keyframes_before = self.odometry.keyframes();
+        let (status, points) = match frame {
+            Ok(mut frame) => {
+                let points = std::mem::take(&mut frame.map_source);
+                let status = self.odometry.track(frame);
+                (status, points)
+            }
+            Err(reason) => (self.odometry.skip(reason), Default::default()),
+        };
+        let track_ms = start.elapsed().as_secs_f64() * 1e3;
+        self.timings.record("prepare", prepare_ms);
+        self.timings.record("track", track_ms);
+        self.timings.record("frame", prepare_ms + track_ms);
+        let world_from_tracked = self.odometry.pose();
+        let tracking = match status {
+            FrameStatus::Failed(_) => {
+                self.stats.failed += 1;
+                self.failures_in_row += 1;
+                if self.stats.initialisations == 0 {
+                    TrackingStatus::Initialising
+                } else if self.failures_in_row >= self.config.max_consecutive_failures {
+                    TrackingStatus::Lost
+                } else {
+                    TrackingStatus::Predicted
+                }
+            }
+            FrameStatus::Initialised { .. } | FrameStatus::Tracked { .. } => {
+                if matches!(status, FrameStatus::Initialised { .. }) {
+                    self.stats.initialisations += 1;
+                }
+                self.stats.processed += 1;
+                self.failures_in_row = 0;
+                self.point_map.insert(world_from_tracked, points);
+                TrackingStatus::Tracking
+            }
+        };
+        self.stats.unmapped = self.point_map.unmapped();
+        let pose = world_from_tracked * self.tracked_from_camera;
+        let keyframe = tracking == TrackingStatus::Tracking
+            && match self.config.mode {
+                TrackingMode::LocalMap => self.odometry.keyframes() > keyframes_before,
+                TrackingMode::FrameToFrame => {
+                    (self.stats.processed - 1) % self.config.local_map.keyframe_every.max(1) == 0
+                }
+            };
+        if keyframe {
+            self.add_keyframe(timestamp, pose);
+        }
+        Some(VisualUpdate {
+            update: Update {
+                timestamp,
+                pose: Some(pose),
+                status: tracking,
+                map: MapChange {
+                    keyframes_added: usize::from(keyframe),
+                    loop_closures: 0,
+                    map_moved: false,
+                },
+            },
+            index,
+            frame: status,
+        })
+    }
+
+    /// Records the frame just tracked, at `pose`, as a keyframe of the map, its points moved
+    /// from the tracked camera into the rig's reference camera.
+    fn add_keyframe(&mut self, timestamp: f64, pose: Pose3) {
+        let camera_from_tracked = self.tracked_from_camera.inverse();
+        let points = self
+            .odometry
+            .reference_points()
+            .into_iter()
+            .map(|(p, d)| (camera_from_tracked * p, d))
+            .collect();
+        self.map.keyframes.push(keyframes::Keyframe {
+            timestamp,
+            pose,
+            points,
+        });
+    }
+
+    /// The keyframes so far.
+    pub fn map(&self) -> &VisualMap {
+        &self.map
+    }
+
+    /// Frame counters so far.
+    pub fn stats(&self) -> VisualStats {
+        self.stats
+    }
+
+    /// The current `world_from_camera` of the rig's reference camera.
+    pub fn pose(&self) -> Pose3 {
+        self.odometry.pose() * self.tracked_from_camera
+    }
+
+    /// Ends the session: waits for the point map to take every tracked frame.
+    ///
+    /// # Errors
+    /// [`SlamError::Thread`] when the mapping thread failed.
+    pub fn finish(self) -> Result<VisualOutput, SlamError> {
+        let mut timings = self.timings;
+        let point_map = self.point_map.finish()?.map(|(map, map_timings)| {
+            timings.merge(&map_timings);
+            map
+        });
+        Ok(VisualOutput {
+            point_map,
+            timings,
+            stats: self.stats,
+        })
+    }
+}
+
+impl Session for VisualSlam {
+    fn push(&mut self, observation: Observation) -> Option<Update> {
+        VisualSlam::push(self, observation)
+    }
+
+    /// Writes the keyframes (poses, points and descriptors; [`keyframes`] lists the sections).
+    fn save(&self, path: &Path) -> Result<(), SlamError> {
+        let rig = match self.rig {
+            Rig::Rgbd { .. } => map_file::Rig::Rgbd,
+            Rig::Stereo { .. } => map_file::Rig::Stereo,
+        };
+        let map_error = |source| SlamError::MapFile {
+            path: path.to_path_buf(),
+            source,
+        };
+        self.map
+            .to_map_file(rig)
+            .map_err(map_error)?
+            .save(path)
+            .map_err(map_error)
+    }
+}
+
+/// The camera rig of a dataset: what a [`VisualSlam`] on it is built with.
+pub fn rig_of(dataset: &Dataset) -> Rig {
+    match dataset {
+        Dataset::Rgbd(s) => Rig::Rgbd {
+            color: s.color_camera.intrinsics,
+            depth: s.depth_camera.intrinsics,
+        },
+        Dataset::Stereo(s) => Rig::Stereo {
+            left: s.left_camera.intrinsics,
+            baseline_m: s.baseline_m(),
+        },
+    }
+}
