@@ -4,6 +4,7 @@
 //! second half. Each is scored with the benchmark's relations metric against the uninterrupted
 //! mapping run (issue: localisation within 1.2×, the continued map's whole trajectory within
 //! 1.3×). Speed is measured by `scripts/bench_lifecycle.sh`, not here.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers fail loudly
 
 use slamkit_core::{LaserScan, Pose2, Trajectory};
 use slamkit_eval::relations::GroundTruthRelation;
