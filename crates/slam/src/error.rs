@@ -7,7 +7,7 @@ pub enum SlamError {
     #[error("configuration: {0}")]
     Config(String),
     /// The map file could not be read or written.
-    #[error("map file {path}: {source}")]
+    #[error("map file {path}")]
     MapFile {
         /// The file.
         path: std::path::PathBuf,

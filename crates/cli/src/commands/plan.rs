@@ -1,6 +1,7 @@
 //! `slamkit plan`: a path on an occupancy grid map.
 //!
-//! The map is read from a ROS `map_server` YAML (cropped to its known cells), obstacles are
+//! The map is read from a ROS `map_server` YAML (cropped to its known cells) or a `.skmap`
+//! (the grid rebuilt from its keyframe scans), obstacles are
 //! inflated by the robot's footprint, and the chosen planner runs through known-free cells
 //! first and through unknown cells only when that fails. Writes `path.csv` (the waypoints),
 //! `map.png` (the path drawn on the map) and `report.json`.
@@ -35,10 +36,22 @@ impl From<Planner> for GridPlanner {
     }
 }
 
+/// The occupancy grid of a ROS map_server YAML, or of a `.skmap` (rebuilt from its keyframes).
+fn load_grid(path: &Path) -> anyhow::Result<slamkit_map::OccupancyGrid> {
+    let skmap = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("skmap"));
+    if skmap {
+        let (map, _) = slamkit_slam::lidar::LidarMap::load(path)?;
+        return Ok(map.grid(slamkit_map::OccupancyGridConfig::default())?);
+    }
+    Ok(load_map_yaml(path)?)
+}
+
 /// Arguments of `slamkit plan`.
 #[derive(Debug, clap::Args)]
 pub struct PlanArgs {
-    /// Map in ROS map_server format (YAML next to its PGM).
+    /// Map: ROS map_server format (YAML next to its PGM) or a slamkit `.skmap`.
     #[arg(long)]
     pub map: PathBuf,
     /// Start position in map coordinates, `X,Y` (m).
@@ -81,7 +94,7 @@ pub fn run(args: &PlanArgs) -> anyhow::Result<()> {
     let start = parse_xy(&args.start, "start")?;
     let goal = parse_xy(&args.goal, "goal")?;
     let map =
-        load_map_yaml(&args.map).with_context(|| format!("reading map {}", args.map.display()))?;
+        load_grid(&args.map).with_context(|| format!("reading map {}", args.map.display()))?;
     let grid = TriGrid::from_occupancy_grid(&map);
     let inflated = grid.inflated(args.inflate_cells);
     let planner = GridPlanner::from(args.planner);
