@@ -10,10 +10,13 @@
 //!   [`seven_scenes`], [`redwood`], [`euroc`]; [`Dataset`] opens any of them by name.
 //! * Writers for simulated data: [`tum_rgbd_writer`], [`kitti_writer`] (images through
 //!   [`image_writer`]), [`carmen_writer`].
+//! * [`drone_csv`]: a drone's range finders, attitude and gyro, and optical flow as CSV files
+//!   (read and written), the signals layered drone SLAM takes besides the scans.
 
 pub mod carmen;
 pub mod carmen_writer;
 pub mod dataset;
+pub mod drone_csv;
 pub mod error;
 pub mod euroc;
 pub mod image_io;

@@ -14,6 +14,8 @@
 //! * [`relations`]: pairs of scans for benchmark relations files.
 //! * [`simulation`]: a robot, a world and its sensors; [`Simulation::lidar_run`] gives the scans,
 //!   ranges and ground truth of a whole run.
+//! * [`observations`]: the run's readings as `slamkit_core` [`Observation`](slamkit_core::Observation)s
+//!   in time order, ready for a session.
 //!
 //! Frames: world z up, origin at a floor corner of the room; base x forward, y left, z up;
 //! cameras x right, y down, z forward. Units m, rad, s. Nothing here prints or touches files.
@@ -35,6 +37,7 @@ pub mod error;
 pub mod flow;
 pub mod lidar;
 pub mod motion;
+pub mod observations;
 pub mod odometry;
 pub mod range_finder;
 pub mod relations;

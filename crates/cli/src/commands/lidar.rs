@@ -3,7 +3,7 @@
 //! known.
 
 use crate::commands::eval::load_relations;
-use crate::commands::lidar_pf;
+use crate::commands::{lidar_drone, lidar_pf};
 use crate::config_file::config_over;
 use crate::output::{peak_rss_bytes, prepare_out_dir, progress_bar, timings_json, write_report};
 use anyhow::Context;
@@ -44,6 +44,24 @@ pub struct LidarArgs {
     /// TOML file with configuration overrides (fields of the method's config).
     #[arg(long)]
     pub config: Option<PathBuf>,
+    /// A drone's up/down range finders (`timestamp,up_m,down_m`): run the drone's layered
+    /// SLAM on the log (see `slamkit_io::drone_csv` for the files' columns).
+    #[arg(long)]
+    pub ranges: Option<PathBuf>,
+    /// The drone's attitude and gyro heading (`timestamp,roll_rad,pitch_rad,gyro_yaw_rad`);
+    /// with `--ranges`.
+    #[arg(long, requires = "ranges")]
+    pub imu: Option<PathBuf>,
+    /// The drone's optical flow (`timestamp,integration_s,forward_mps,left_mps`); with
+    /// `--ranges`.
+    #[arg(long, requires = "ranges")]
+    pub flow: Option<PathBuf>,
+    /// Seed of the particle filter (drone, `--method rbpf`).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Save the map here (`.skmap`; drone runs).
+    #[arg(long, requires = "ranges")]
+    pub save_map: Option<PathBuf>,
     /// Benchmark relations to score against; by default `<log stem>.relations` beside the log.
     #[arg(long)]
     pub relations: Option<PathBuf>,
@@ -54,6 +72,13 @@ pub struct LidarArgs {
 
 /// Runs `slamkit lidar`.
 pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
+    if let Some(ranges) = &args.ranges {
+        anyhow::ensure!(
+            args.localize.is_none(),
+            "--localize is not available for drone runs (--ranges)"
+        );
+        return lidar_drone::run(args, ranges);
+    }
     if let Some(map) = &args.localize {
         return lidar_pf::run_localization(args, map);
     }
