@@ -19,8 +19,8 @@
 //!   surface; empty, `nan` or `inf` when the sensor saw nothing in range.
 //! * `roll_rad`, `pitch_rad`: attitude of the drone's base (x forward, y left, z up), as the
 //!   flight controller estimates it; `gyro_yaw_rad`: the heading integrated from the yaw-rate
-//!   gyro, from any origin and not wrapped (only its change between scans is used); empty when
-//!   there is no gyro.
+//!   gyro, from any origin and not wrapped (only its change between scans is used); empty (or
+//!   `nan`) when there is no gyro.
 //! * `integration_s`: length of the period the flow reading averages, ending at `timestamp`;
 //!   `forward_mps`, `left_mps`: the mean horizontal velocity over it in the body frame (a PX4
 //!   `OPTICAL_FLOW_RAD` message's integrated flow times the distance to the ground, over its
@@ -29,7 +29,8 @@
 //! Values are written in Rust's shortest round-trip form, so a file reads back bit for bit.
 //! Blank lines and lines starting with `#` are skipped. A line that cannot be read (wrong
 //! number of fields, a field that is not a number, a timestamp that is not finite or goes
-//! back in time, a negative range, a non-finite attitude, a non-positive integration time)
+//! back in time, a negative range, an infinite or missing attitude, heading or velocity, a
+//! non-positive integration time)
 //! is an error naming the file and line.
 
 use crate::error::read_text;
@@ -199,9 +200,12 @@ impl Fields<'_> {
             .map_err(|_| format!("{name} {text:?} is not a number"))
     }
 
-    /// Field `i` as a number; `None` when it is empty or `nan`.
+    /// Field `i` as a finite number; `None` when it is empty or `nan`, an error when infinite.
     fn optional(&self, i: usize, name: &str) -> Result<Option<f64>, String> {
-        Ok(self.number(i, name)?.filter(|v| !v.is_nan()))
+        match self.number(i, name)? {
+            Some(v) if v.is_infinite() => Err(format!("{name} {v} is not finite")),
+            v => Ok(v.filter(|v| !v.is_nan())),
+        }
     }
 
     /// Field `i`, which must be a finite number.
@@ -216,7 +220,7 @@ impl Fields<'_> {
     /// Field `i` as a range: `None` when empty or not finite (nothing in range); a negative
     /// range is an error.
     fn range(&self, i: usize, name: &str) -> Result<Option<f64>, String> {
-        match self.optional(i, name)? {
+        match self.number(i, name)? {
             Some(v) if v < 0.0 => Err(format!("{name} {v} is negative")),
             Some(v) if v.is_finite() => Ok(Some(v)),
             _ => Ok(None),
@@ -363,6 +367,8 @@ mod tests {
                 "integration_s 0 is not positive",
             ),
             (parse_flow("1,0.1,1,\n", "f.csv").err(), "both"),
+            (parse_flow("1,0.1,inf,0\n", "f.csv").err(), "forward_mps inf is not finite"),
+            (parse_imu("1,0,0,-inf\n", "i.csv").err(), "gyro_yaw_rad -inf is not finite"),
         ];
         for (err, expected) in cases {
             let message = err.expect(expected).to_string();
