@@ -7,7 +7,7 @@
 //! seeds 2–5 are `--ignored` (about 30 s each).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers fail loudly
 
-use slamkit_core::Pose3;
+use slamkit_core::Trajectory;
 use slamkit_io::read_trajectory;
 use slamkit_sim::{SimConfig, Simulation, World};
 use slamkit_slam::drone::particle_filter::drone_pf_config;
@@ -33,7 +33,7 @@ fn slamkit(args: &[&str], dir: &Path) {
 
 /// The demo's trajectories (layered, particle filter) on `office` with `seed`: the
 /// simulator's readings pushed into the session in memory, as `slamkit demo` does.
-fn demo_trajectories(seed: u64) -> (Vec<(f64, Pose3)>, Vec<(f64, Pose3)>) {
+fn demo_trajectories(seed: u64) -> (Trajectory, Trajectory) {
     let world = World::builtin("office").unwrap();
     let sim = Simulation::new(world, SimConfig::default(), seed).unwrap();
     let config = DroneSlamConfig {
@@ -47,17 +47,25 @@ fn demo_trajectories(seed: u64) -> (Vec<(f64, Pose3)>, Vec<(f64, Pose3)>) {
     (session.trajectory(), session.pf_trajectory().unwrap())
 }
 
-fn assert_same(name: &str, file: &Path, expected: &[(f64, Pose3)]) {
+fn assert_same(name: &str, file: &Path, expected: &Trajectory) {
     let read = read_trajectory(file).unwrap().0;
-    assert_eq!(read.poses.len(), expected.len(), "{name}: poses");
+    assert_eq!(read.poses.len(), expected.poses.len(), "{name}: poses");
     let mut worst = 0.0f64;
-    for (got, (t, pose)) in read.poses.iter().zip(expected) {
-        assert!((got.timestamp - t).abs() < 1e-6, "{name}: time {} vs {t}", got.timestamp);
-        let d = (got.pose.translation.vector - pose.translation.vector).norm();
+    for (got, want) in read.poses.iter().zip(&expected.poses) {
+        let t = want.timestamp;
+        assert!(
+            (got.timestamp - t).abs() < 1e-6,
+            "{name}: time {} vs {t}",
+            got.timestamp
+        );
+        let d = (got.pose.translation.vector - want.pose.translation.vector).norm();
         assert!(d <= TOLERANCE_M, "{name}: {d} m apart at t = {t}");
         worst = worst.max(d);
     }
-    eprintln!("{name}: {} poses, at most {worst:.1e} m apart", expected.len());
+    eprintln!(
+        "{name}: {} poses, at most {worst:.1e} m apart",
+        expected.poses.len()
+    );
 }
 
 fn check_seed(seed: u64) {
@@ -68,10 +76,16 @@ fn check_seed(seed: u64) {
     let dir = tempfile::tempdir().unwrap();
     let seed_arg = seed.to_string();
     slamkit(
-        &["sim", "--world", "office", "--sensors", "lidar2d,range,imu,flow"]
-            .into_iter()
-            .chain(["--seed", &seed_arg, "--out", "rec"])
-            .collect::<Vec<_>>(),
+        &[
+            "sim",
+            "--world",
+            "office",
+            "--sensors",
+            "lidar2d,range,imu,flow",
+        ]
+        .into_iter()
+        .chain(["--seed", &seed_arg, "--out", "rec"])
+        .collect::<Vec<_>>(),
         dir.path(),
     );
     slamkit(
@@ -99,7 +113,10 @@ fn check_seed(seed: u64) {
     for file in ["report.json", "map.yaml", "cloud.ply", "trajectory_pf.tum"] {
         assert!(out.join(file).exists(), "{file} written");
     }
-    assert!(out.join("maps").read_dir().unwrap().count() > 3, "per-layer maps");
+    assert!(
+        out.join("maps").read_dir().unwrap().count() > 3,
+        "per-layer maps"
+    );
     assert!(dir.path().join("rec/map.skmap").exists());
     let (layered, pf) = demo_trajectories(seed);
     assert_same("layered", &out.join("trajectory.tum"), &layered);

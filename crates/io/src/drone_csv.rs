@@ -367,8 +367,14 @@ mod tests {
                 "integration_s 0 is not positive",
             ),
             (parse_flow("1,0.1,1,\n", "f.csv").err(), "both"),
-            (parse_flow("1,0.1,inf,0\n", "f.csv").err(), "forward_mps inf is not finite"),
-            (parse_imu("1,0,0,-inf\n", "i.csv").err(), "gyro_yaw_rad -inf is not finite"),
+            (
+                parse_flow("1,0.1,inf,0\n", "f.csv").err(),
+                "forward_mps inf is not finite",
+            ),
+            (
+                parse_imu("1,0,0,-inf\n", "i.csv").err(),
+                "gyro_yaw_rad -inf is not finite",
+            ),
         ];
         for (err, expected) in cases {
             let message = err.expect(expected).to_string();

@@ -33,7 +33,7 @@ use particle_filter::DronePf;
 use serde::{Deserialize, Serialize};
 use slamkit_core::observation::RangePair;
 use slamkit_core::pose::pose2_to_pose3;
-use slamkit_core::{LaserScan, Observation, Pose2, Pose3, StageTimings};
+use slamkit_core::{LaserScan, Observation, Pose2, Pose3, StageTimings, Trajectory};
 use slamkit_lidar::icp_slam::ScanStatus;
 use slamkit_lidar::layers::{
     LayerMap, LayerScanStatus, LayeredEstimate, LayeredIcpSlam, LayeredSlamConfig, LayeredStats,
@@ -99,6 +99,8 @@ pub struct DroneSlam {
     slam: LayeredIcpSlam,
     readings: readings::Readings,
     pf: Option<DronePf>,
+    /// The particle filter's best pose at the last scan (frame of the first scan).
+    pf_pose: Option<Pose3>,
     scans: Vec<ScanRecord>,
     ignored: usize,
 }
@@ -126,6 +128,7 @@ impl DroneSlam {
             map_from_world: map_from_first,
             readings: readings::Readings::default(),
             pf,
+            pf_pose: None,
             scans: Vec::new(),
             ignored: 0,
         })
@@ -161,7 +164,7 @@ impl DroneSlam {
         let relocalisations = self.slam.stats().relocalisations;
         let estimate = self.slam.process(&input);
         if let Some(pf) = &mut self.pf {
-            pf.push(scan, &estimate);
+            self.pf_pose = pf.push(scan, &estimate);
         }
         self.scans.push(ScanRecord {
             timestamp: scan.timestamp,
@@ -207,11 +210,12 @@ impl DroneSlam {
     }
 
     /// The pose estimated at every scan so far, in the map frame.
-    pub fn trajectory(&self) -> Vec<(f64, Pose3)> {
-        self.scans
-            .iter()
-            .map(|s| (s.timestamp, self.to_map(&s.estimate.world_from_base)))
-            .collect()
+    pub fn trajectory(&self) -> Trajectory {
+        let mut trajectory = Trajectory::new();
+        for s in &self.scans {
+            trajectory.push(s.timestamp, self.to_map(&s.estimate.world_from_base));
+        }
+        trajectory
     }
 
     /// The layered mapper (its maps, keyframes, counters and timings; frame of the first scan).
@@ -255,18 +259,22 @@ impl DroneSlam {
         self.pf.as_ref()
     }
 
+    /// The particle filter's best pose at the last scan, in the map frame: its best particle's
+    /// at its last update moved by the layered increments since (`None` without a particle
+    /// filter or before its first usable scan).
+    pub fn pf_pose(&self) -> Option<Pose3> {
+        self.pf_pose.map(|p| self.to_map(&p))
+    }
+
     /// The particle filter's trajectory over every scan so far, smoothed through its best
     /// particle's ancestry, in the map frame; `None` without a particle filter.
-    pub fn pf_trajectory(&self) -> Option<Vec<(f64, Pose3)>> {
+    pub fn pf_trajectory(&self) -> Option<Trajectory> {
         let pf = self.pf.as_ref()?;
-        let poses = pf.trajectory(&self.estimates());
-        Some(
-            self.scans
-                .iter()
-                .zip(poses)
-                .map(|(s, p)| (s.timestamp, self.to_map(&p)))
-                .collect(),
-        )
+        let mut trajectory = Trajectory::new();
+        for (s, pose) in self.scans.iter().zip(pf.trajectory(&self.estimates())) {
+            trajectory.push(s.timestamp, self.to_map(&pose));
+        }
+        Some(trajectory)
     }
 
     /// Observations of kinds this session does not use (odometry, images), ignored.
@@ -304,3 +312,6 @@ fn tracking_status(status: &LayerScanStatus) -> TrackingStatus {
         },
     }
 }
+
+#[cfg(test)]
+mod tests;

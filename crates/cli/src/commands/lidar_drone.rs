@@ -12,7 +12,7 @@ use crate::output::{peak_rss_bytes, prepare_out_dir, timings_json, write_report}
 use anyhow::Context;
 use serde_json::json;
 use slamkit_core::observation::time_ordered;
-use slamkit_core::{Observation, Pose3, Trajectory};
+use slamkit_core::Observation;
 use slamkit_io::drone_csv::{read_flow, read_imu, read_ranges};
 use slamkit_io::write_tum;
 use slamkit_map::{save_map_yaml, save_png};
@@ -52,7 +52,7 @@ pub fn run(args: &LidarArgs, ranges: &Path) -> anyhow::Result<()> {
     observations.extend(log.scans.iter().cloned().map(Observation::Scan));
     let session = run_session(time_ordered(observations), config.clone())?;
 
-    let trajectory = to_trajectory(session.trajectory());
+    let trajectory = session.trajectory();
     write_tum(&out.join("trajectory.tum"), &trajectory)?;
     let estimates = session.estimates();
     let layer_height_m = config.layers.height.layer_height_m;
@@ -66,7 +66,7 @@ pub fn run(args: &LidarArgs, ranges: &Path) -> anyhow::Result<()> {
     write_ply(&out.join("cloud.ply"), &session.merged_cloud())?;
     let pf = match (session.particle_filter(), session.pf_trajectory()) {
         (Some(pf), Some(poses)) => {
-            write_tum(&out.join("trajectory_pf.tum"), &to_trajectory(poses))?;
+            write_tum(&out.join("trajectory_pf.tum"), &poses)?;
             if let Some(grid) = pf.map() {
                 save_map_yaml(grid, &out.join("map_pf.yaml"))?;
                 save_png(grid, &out.join("map_pf.png"))?;
@@ -107,12 +107,4 @@ pub fn run(args: &LidarArgs, ranges: &Path) -> anyhow::Result<()> {
     println!("{} height layers", layer_files.len());
     print_summary(&out, &report);
     Ok(())
-}
-
-fn to_trajectory(poses: Vec<(f64, Pose3)>) -> Trajectory {
-    let mut trajectory = Trajectory::new();
-    for (t, pose) in poses {
-        trajectory.push(t, pose);
-    }
-    trajectory
 }
