@@ -15,6 +15,11 @@
 //! * [`trajectory`]: timestamped poses with SE(3) interpolation; [`point_cloud`]: point sets.
 //! * [`observation`]: the timestamped [`Observation`] every source produces and every SLAM
 //!   session consumes.
+//! * [`pose`]: the [`Pose2`] / [`Pose3`] aliases and conversions between 2D and 3D poses.
+//! * [`scan`]: [`LaserScan`], a 2D laser scan as a planar lidar delivers it.
+//! * [`image`]: a minimal owned row-major image shared by the readers and the vision crates.
+//! * [`timing`]: per-stage timings summarised as median and 95th percentile ([`StageTimings`]).
+//! * [`error`]: [`GeometryError`], bad input as an `Err`, never a panic.
 //!
 //! Nothing in this crate prints, reads files or exits the process.
 

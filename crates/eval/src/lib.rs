@@ -1,13 +1,16 @@
 //! slamkit-eval: accuracy of an estimated trajectory against ground truth, with the metrics the
 //! field reports, computed so that they match the reference tools to rounding.
 //!
-//! * [`ate()`] — absolute trajectory error after SE(3) / Sim(3) / no alignment (Sturm et al.,
-//!   IROS 2012; alignment by Umeyama, TPAMI 1991), as `evo_ape` with `--pose_relation trans_part`.
-//! * [`rpe()`] — relative pose error over a delta in frames or metres (Sturm et al. 2012), as
-//!   `evo_rpe`.
-//! * [`relations_error`] — the relations metric of Kümmerle et al., Autonomous Robots 2009,
-//!   used by the 2D lidar benchmark logs.
+//! * [`mod@ate`]: [`ate()`] — absolute trajectory error after SE(3) / Sim(3) / no alignment
+//!   (Sturm et al., IROS 2012; alignment by Umeyama, TPAMI 1991), as `evo_ape` with
+//!   `--pose_relation trans_part`.
+//! * [`mod@rpe`]: [`rpe()`] — relative pose error over a delta in frames or metres (Sturm et al.
+//!   2012), as `evo_rpe`.
+//! * [`relations`]: [`relations_error`] — the relations metric of Kümmerle et al., Autonomous
+//!   Robots 2009, used by the 2D lidar benchmark logs.
 //! * [`association`] — pairing poses by nearest timestamp exactly as evo 1.38, or by index.
+//! * [`stats`] — [`ErrorStats`]: RMSE, mean, median, std, min, max and count, as evo and numpy
+//!   compute them.
 //! * [`plot`] — top view and error-over-time figures (PNG or SVG).
 //!
 //! Poses are `world_from_body` ([`slamkit_core::Pose3`]); errors are in metres and degrees.

@@ -8,10 +8,17 @@
 //! * Camera datasets, each giving frames (timestamps + paths, images decoded on demand),
 //!   calibrated cameras and `world_from_camera` ground truth: [`tum_rgbd`], [`kitti`],
 //!   [`seven_scenes`], [`redwood`], [`euroc`]; [`Dataset`] opens any of them by name.
+//! * [`dataset`]: what every camera dataset reader returns, and [`Dataset`] to open any of
+//!   them by format name.
 //! * Writers for simulated data: [`tum_rgbd_writer`], [`kitti_writer`] (images through
 //!   [`image_writer`]), [`carmen_writer`].
 //! * [`drone_csv`]: a drone's range finders, attitude and gyro, and optical flow as CSV files
 //!   (read and written), the signals layered drone SLAM takes besides the scans.
+//! * 2D lidar logs: [`carmen`] (CARMEN `.clf`, plain or gzip: scans with wheel odometry) and
+//!   [`mrpt_text`] (text dumps of MRPT rawlogs and ground-truth files).
+//! * [`relations`]: ground-truth relations of the 2D SLAM benchmark (`*.relations`,
+//!   Kümmerle et al. 2009).
+//! * [`error`]: [`IoError`], every variant naming the file, and the line or frame.
 
 pub mod carmen;
 pub mod carmen_writer;

@@ -33,6 +33,9 @@ pub enum LidarError {
         /// Why it is invalid.
         reason: &'static str,
     },
+    /// A map given to continue or localise in is inconsistent.
+    #[error("invalid map: {0}")]
+    InvalidMap(String),
 }
 
 impl LidarError {

@@ -24,7 +24,7 @@ use crate::pose_graph::{Edge, PoseGraph};
 use crate::LidarError;
 pub use broken_scans::{BrokenScan, BrokenScanCounts};
 pub use loop_closure::LoopClosureConfig;
-use nalgebra::{Matrix3, Point2, Vector3};
+use nalgebra::{Matrix3, Point2};
 use serde::{Deserialize, Serialize};
 use slamkit_core::pose::pose2_to_pose3;
 use slamkit_core::{LaserScan, Pose2, StageTimings, Trajectory};
@@ -102,6 +102,28 @@ impl Default for IcpSlamConfig {
 }
 
 impl IcpSlamConfig {
+    /// A keyframe of `points` (base frame) at `world_from_base`, with the normals this
+    /// configuration estimates.
+    pub fn keyframe(&self, points: Vec<Point2<f64>>, world_from_base: Pose2) -> Keyframe {
+        let normals = estimate_normals(
+            &points,
+            self.normal_neighbours,
+            self.normal_radius_m,
+            self.normal_max_flatness,
+        );
+        Keyframe {
+            world_from_base,
+            points,
+            normals,
+        }
+    }
+
+    /// The points of `scan` a keyframe or a match uses (base frame): beams within the range
+    /// limits.
+    pub fn scan_points(&self, scan: &LaserScan) -> Vec<Point2<f64>> {
+        scan_points(scan, self.min_range_m, self.max_range_m)
+    }
+
     /// Checks every field's range.
     pub fn validate(&self) -> Result<(), LidarError> {
         self.icp.validate()?;
@@ -220,6 +242,11 @@ pub struct IcpSlam {
     anchors: Vec<(Option<usize>, Pose2)>,
     stats: IcpSlamStats,
     timings: StageTimings,
+    /// Localisation only: the map is matched against and never changed.
+    frozen: bool,
+    /// The node the next keyframe is chained to, when not the one before it (a resumed map's
+    /// keyframe nearest to where the robot was found).
+    chain_from: Option<usize>,
 }
 
 /// An odometry reading and the pose of the first scan that carried it ([`IcpSlam::predict`]).
@@ -250,7 +277,80 @@ impl IcpSlam {
             anchors: Vec::new(),
             stats: IcpSlamStats::default(),
             timings: StageTimings::default(),
+            frozen: false,
+            chain_from: None,
         })
+    }
+
+    /// A mapper with an empty map whose first scan is at `world_from_base` (the map frame's
+    /// origin is where the robot starts when this is the identity).
+    pub fn starting_at(config: IcpSlamConfig, world_from_base: Pose2) -> Result<Self, LidarError> {
+        let mut slam = Self::new(config)?;
+        slam.world_from_base = world_from_base;
+        Ok(slam)
+    }
+
+    /// A mapper that continues a saved map: `keyframes` are its nodes in order (with normals)
+    /// and `edges` its pose graph; the robot is at `world_from_base`, found in that map (by
+    /// global localisation: this does not search). The scans that follow are matched to the
+    /// old keyframes nearest to the robot, the first new keyframe is chained to the nearest,
+    /// and loop closures join later ones to the rest of the old map.
+    pub fn resume(
+        config: IcpSlamConfig,
+        keyframes: Vec<Keyframe>,
+        edges: Vec<Edge>,
+        world_from_base: Pose2,
+    ) -> Result<Self, LidarError> {
+        let mut slam = Self::new(config)?;
+        for kf in &keyframes {
+            slam.graph.add_node(kf.world_from_base);
+        }
+        for edge in edges {
+            if edge.from >= keyframes.len() || edge.to >= keyframes.len() {
+                return Err(LidarError::InvalidMap(format!(
+                    "pose-graph edge {}-{} names a keyframe beyond the {} given",
+                    edge.from,
+                    edge.to,
+                    keyframes.len()
+                )));
+            }
+            slam.graph.add_edge(edge);
+        }
+        let by_distance = nearest_keyframes(&keyframes, &world_from_base);
+        let mut near: Vec<usize> = by_distance
+            .iter()
+            .copied()
+            .take(slam.config.map_keyframes.max(1))
+            .collect();
+        near.sort_unstable();
+        slam.map.extend_with_ids(
+            near.iter()
+                .filter_map(|&i| Some((i, keyframes.get(i)?.clone()))),
+        );
+        slam.chain_from = by_distance.first().copied();
+        slam.keyframes = keyframes;
+        slam.world_from_base = world_from_base;
+        slam.last_keyframe = Some(world_from_base);
+        Ok(slam)
+    }
+
+    /// A localiser in a fixed map: every scan is matched to all of `keyframes` (with normals)
+    /// from the pose predicted after `world_from_base`, where the robot was found (by global
+    /// localisation: this does not search); nothing is inserted and nothing moves.
+    pub fn localise_only(
+        config: IcpSlamConfig,
+        keyframes: Vec<Keyframe>,
+        world_from_base: Pose2,
+    ) -> Result<Self, LidarError> {
+        let mut slam = Self::new(IcpSlamConfig {
+            map_keyframes: 0,
+            ..config
+        })?;
+        slam.map.extend(keyframes.iter().cloned());
+        slam.keyframes = keyframes;
+        slam.world_from_base = world_from_base;
+        slam.frozen = true;
+        Ok(slam)
     }
 
     /// Estimates the pose of `scan` and updates the map. Never fails: a scan that cannot be used
@@ -281,7 +381,7 @@ impl IcpSlam {
                 || d.rotation.angle().abs() >= self.config.insertion_angular_rad
         });
         let stale = self.consecutive_failures >= self.config.max_failures_before_insert.max(1);
-        let insert = moved && (status != ScanStatus::MatchFailed || stale);
+        let insert = !self.frozen && moved && (status != ScanStatus::MatchFailed || stale);
         self.commit(pose, status, goodness, insert.then_some(points.as_slice()))
     }
 
@@ -369,25 +469,15 @@ impl IcpSlam {
 
     fn insert(&mut self, points: &[Point2<f64>], pose: &Pose2) {
         let start = Instant::now();
-        let c = &self.config;
-        let normals = estimate_normals(
-            points,
-            c.normal_neighbours,
-            c.normal_radius_m,
-            c.normal_max_flatness,
-        );
-        let keyframe = Keyframe {
-            world_from_base: *pose,
-            points: points.to_vec(),
-            normals,
-        };
+        let keyframe = self.config.keyframe(points.to_vec(), *pose);
         self.map.insert(keyframe.clone());
         let node = self.graph.add_node(*pose);
-        if let Some(prev) = node.checked_sub(1).and_then(|i| self.keyframes.get(i)) {
+        let from = self.chain_from.take().or(node.checked_sub(1));
+        if let Some((from, prev)) = from.and_then(|i| Some((i, self.keyframes.get(i)?))) {
             self.open_distance_m +=
                 (pose.translation.vector - prev.world_from_base.translation.vector).norm();
             self.graph.add_edge(Edge {
-                from: node - 1,
+                from,
                 to: node,
                 from_from_to: prev.world_from_base.inverse() * pose,
                 information: self.edge_information(),
@@ -406,9 +496,7 @@ impl IcpSlam {
     }
 
     fn edge_information(&self) -> Matrix3<f64> {
-        let lc = &self.config.loop_closure;
-        let (t, r) = (lc.edge_sigma_m.powi(-2), lc.edge_sigma_rad.powi(-2));
-        Matrix3::from_diagonal(&Vector3::new(t, t, r))
+        self.config.loop_closure.edge_information()
     }
 
     /// Searches loop closures for the newest keyframe; on success optimises the graph and moves
@@ -536,6 +624,21 @@ impl IcpSlam {
         &self.map
     }
 
+    /// The pose graph: one node per keyframe, in order.
+    pub fn graph(&self) -> &PoseGraph {
+        &self.graph
+    }
+
+    /// Scans in a row whose match failed, up to now.
+    pub fn failures_in_a_row(&self) -> usize {
+        self.consecutive_failures
+    }
+
+    /// The estimate of the robot's current pose.
+    pub fn pose(&self) -> Pose2 {
+        self.world_from_base
+    }
+
     /// Counters so far.
     pub fn stats(&self) -> &IcpSlamStats {
         &self.stats
@@ -545,6 +648,20 @@ impl IcpSlam {
     pub fn timings(&self) -> &StageTimings {
         &self.timings
     }
+}
+
+/// Indices of `keyframes` by distance from `pose`, nearest first.
+fn nearest_keyframes(keyframes: &[Keyframe], pose: &Pose2) -> Vec<usize> {
+    let mut by_distance: Vec<(f64, usize)> = keyframes
+        .iter()
+        .enumerate()
+        .map(|(i, kf)| {
+            let d = kf.world_from_base.translation.vector - pose.translation.vector;
+            (d.norm(), i)
+        })
+        .collect();
+    by_distance.sort_by(|a, b| a.0.total_cmp(&b.0));
+    by_distance.into_iter().map(|(_, i)| i).collect()
 }
 
 /// Everything a full run produces.

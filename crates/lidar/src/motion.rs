@@ -140,33 +140,64 @@ impl Default for ScanOdometryConfig {
 /// (too few points, low goodness) repeats the last motion. Returns the poses and the number of
 /// scans that could not be aligned.
 pub fn scan_odometry(scans: &[LaserScan], config: &ScanOdometryConfig) -> (Vec<Pose2>, usize) {
-    let mut poses = Vec::with_capacity(scans.len());
-    let mut previous: Option<PointIndex> = None;
-    let mut pose = Pose2::identity();
-    let mut motion = Pose2::identity();
-    let mut failures = 0;
-    for scan in scans {
+    let mut odometry = ScanOdometry::new(config.clone());
+    let poses = scans.iter().map(|scan| odometry.push(scan)).collect();
+    (poses, odometry.failures())
+}
+
+/// [`scan_odometry`] one scan at a time, for online use.
+pub struct ScanOdometry {
+    config: ScanOdometryConfig,
+    previous: Option<PointIndex>,
+    pose: Pose2,
+    motion: Pose2,
+    started: bool,
+    failures: usize,
+}
+
+impl ScanOdometry {
+    /// Odometry starting at the identity with the first scan.
+    pub fn new(config: ScanOdometryConfig) -> Self {
+        Self {
+            config,
+            previous: None,
+            pose: Pose2::identity(),
+            motion: Pose2::identity(),
+            started: false,
+            failures: 0,
+        }
+    }
+
+    /// The odometry pose of `scan`, the next scan in time.
+    pub fn push(&mut self, scan: &LaserScan) -> Pose2 {
+        let config = &self.config;
         let points = scan_points(scan, config.min_range_m, config.max_range_m);
-        let guess = motion;
-        let aligned = previous
+        let guess = self.motion;
+        let aligned = self
+            .previous
             .as_ref()
             .and_then(|target| align(&points, target, &guess, &config.icp).ok())
             .filter(|r| r.goodness >= config.min_goodness);
         match aligned {
-            Some(result) => motion = result.target_from_source,
-            None if previous.is_some() => failures += 1,
+            Some(result) => self.motion = result.target_from_source,
+            None if self.previous.is_some() => self.failures += 1,
             None => {}
         }
-        if !poses.is_empty() {
-            pose *= motion;
+        if self.started {
+            self.pose *= self.motion;
         }
-        poses.push(pose);
+        self.started = true;
         if points.len() >= config.icp.min_correspondences {
             let normals = estimate_normals(&points, 6, 0.5, 0.2);
-            previous = Some(PointIndex::new(points, Some(normals)));
+            self.previous = Some(PointIndex::new(points, Some(normals)));
         }
+        self.pose
     }
-    (poses, failures)
+
+    /// Scans that could not be aligned so far.
+    pub fn failures(&self) -> usize {
+        self.failures
+    }
 }
 
 /// Odometry pose of every scan: the log's wheel odometry when every scan has it and

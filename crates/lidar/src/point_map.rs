@@ -33,6 +33,9 @@ pub struct KeyframeMap {
     voxel_m: f64,
     max_keyframes: usize,
     window: VecDeque<Keyframe>,
+    /// The id of each keyframe in `window`: the order of insertion from 0, unless given
+    /// ([`KeyframeMap::insert_with_id`]).
+    ids: VecDeque<usize>,
     voxels: VoxelMap<usize>,
     points: Vec<Point2<f64>>,
     normals: Vec<Option<Vector2<f64>>>,
@@ -48,6 +51,7 @@ impl KeyframeMap {
             voxel_m,
             max_keyframes,
             window: VecDeque::new(),
+            ids: VecDeque::new(),
             voxels: VoxelMap::default(),
             points: Vec::new(),
             normals: Vec::new(),
@@ -63,30 +67,49 @@ impl KeyframeMap {
 
     /// Adds keyframes in order and re-indexes the map once.
     pub fn extend(&mut self, keyframes: impl IntoIterator<Item = Keyframe>) {
-        for keyframe in keyframes {
+        let first = self.keyframes_inserted;
+        self.extend_with_ids(
+            keyframes
+                .into_iter()
+                .enumerate()
+                .map(|(i, kf)| (first + i, kf)),
+        );
+    }
+
+    /// Adds `keyframe` known as `id` (what [`KeyframeMap::relocate`] asks new poses for), e.g.
+    /// an old keyframe of a loaded map near where the robot resumes mapping.
+    pub fn insert_with_id(&mut self, id: usize, keyframe: Keyframe) {
+        self.extend_with_ids(std::iter::once((id, keyframe)));
+    }
+
+    /// Adds `(id, keyframe)` pairs in order and re-indexes the map once.
+    pub fn extend_with_ids(&mut self, keyframes: impl IntoIterator<Item = (usize, Keyframe)>) {
+        for (id, keyframe) in keyframes {
             self.keyframes_inserted += 1;
             if self.max_keyframes == 0 {
                 self.add_points(&keyframe);
             }
             self.window.push_back(keyframe);
+            self.ids.push_back(id);
         }
         if self.max_keyframes == 0 {
             self.reindex();
         } else {
             while self.window.len() > self.max_keyframes {
                 self.window.pop_front();
+                self.ids.pop_front();
             }
             self.rebuild();
         }
     }
 
-    /// Moves the keyframes held in the map to new poses and rebuilds it: `pose_of(i)` is the new
-    /// pose of the `i`-th keyframe inserted (from 0), or `None` to keep its pose. Used after a
-    /// pose-graph optimisation has corrected the keyframes.
+    /// Moves the keyframes held in the map to new poses and rebuilds it: `pose_of(id)` is the
+    /// new pose of the keyframe with that id (by default the order of insertion from 0), or
+    /// `None` to keep its pose. Used after a pose-graph optimisation has corrected the
+    /// keyframes.
     pub fn relocate(&mut self, pose_of: impl Fn(usize) -> Option<Pose2>) {
-        let first = self.keyframes_inserted - self.window.len();
-        for (i, kf) in self.window.iter_mut().enumerate() {
-            if let Some(pose) = pose_of(first + i) {
+        for (id, kf) in self.ids.iter().zip(self.window.iter_mut()) {
+            if let Some(pose) = pose_of(*id) {
                 kf.world_from_base = pose;
             }
         }

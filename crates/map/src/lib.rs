@@ -10,6 +10,10 @@
 //! * [`floor`]: the floor plane (RANSAC or three image regions) and the floor-aligned map frame
 //!   (Rodrigues' rotation).
 //! * [`floor_grid`]: 2D grids from 3D points in a height band, by point count or log-odds.
+//! * [`raycast`]: Bresenham ray traversal between grid cells (Bresenham 1965).
+//! * [`distance_transform`]: exact Euclidean distance transform of a binary image
+//!   (Felzenszwalb & Huttenlocher 2012), under the likelihood field.
+//! * [`error`]: [`MapError`] and [`MapFileError`].
 //!
 //! Frames: the grid lives in the world frame (x, y in metres, cell (0, 0) at the grid origin);
 //! scans are inserted with the laser's pose `world_from_laser`.

@@ -7,6 +7,8 @@
 //! * [`octree_astar`]: A* through the free voxels of an octree, for flying robots.
 //! * [`tracker`]: carrot-following path tracker for a unicycle (differential-drive) robot.
 //! * [`gating`]: pauses mapping and planning while the camera turns too fast (motion blur).
+//! * [`render`]: draws a path on its grid, for `map.png`.
+//! * `error`: [`NavError`], what planning and tracking refuse.
 //!
 //! Frames: planners work in the map frame of the grid or octree they are given (x, y in metres
 //! on the floor for 2D grids); the tracker takes the robot's pose `map_from_base` in the same

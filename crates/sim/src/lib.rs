@@ -11,7 +11,10 @@
 //!   [`flow`] (downward optical-flow velocity),
 //!   [`camera`] (RGB-D: colour and Kinect-like depth) and [`stereo`] (a rectified grey pair),
 //!   both ray-cast per pixel: [`Simulation::rgbd_frame`], [`Simulation::stereo_frame`].
+//! * [`texture`]: procedural surface textures (checkerboards, hash-noise blobs) fixed to the
+//!   world, so camera images have features to track.
 //! * [`relations`]: pairs of scans for benchmark relations files.
+//! * [`error`]: [`SimError`], bad world descriptions and impossible robot paths.
 //! * [`simulation`]: a robot, a world and its sensors; [`Simulation::lidar_run`] gives the scans,
 //!   ranges and ground truth of a whole run.
 //! * [`observations`]: the run's readings as `slamkit_core` [`Observation`](slamkit_core::Observation)s

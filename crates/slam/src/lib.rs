@@ -21,10 +21,12 @@
 pub mod collator;
 pub mod drone;
 mod error;
+pub mod lidar;
 pub mod map_file;
 pub mod session;
 
 pub use collator::Collator;
 pub use drone::{DroneSlam, DroneSlamConfig};
 pub use error::SlamError;
+pub use lidar::{LidarMap, LidarMethod, LidarSlam, LidarSlamConfig};
 pub use session::{MapChange, Session, TrackingStatus, Update};

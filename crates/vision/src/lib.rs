@@ -16,6 +16,7 @@
 //!   2011) and Hamming descriptor matching.
 //! * [`stereo`]: sparse ZNCC stereo matching along epipolar lines with sub-pixel disparity and
 //!   a per-point confidence.
+//! * [`error`]: [`VisionError`], bad configuration or images that do not fit together.
 
 mod border;
 pub mod clahe;

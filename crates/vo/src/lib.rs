@@ -17,6 +17,8 @@
 //! * [`metrics`]: ATE, RPE and end-point drift against ground truth.
 //! * [`pipeline`]: the four-thread pipeline, real-time play with frame dropping.
 //! * [`config`]: the configuration, defaults and TOML.
+//! * [`error`]: [`VoError`]; a bad frame is not an error but a failed [`FrameStatus`], counted
+//!   and skipped.
 
 pub mod config;
 pub mod depth;

@@ -112,6 +112,13 @@ impl Default for LoopClosureConfig {
 }
 
 impl LoopClosureConfig {
+    /// The information matrix of every pose-graph edge: `edge_sigma_m` on x and y,
+    /// `edge_sigma_rad` on the heading.
+    pub fn edge_information(&self) -> nalgebra::Matrix3<f64> {
+        let (t, r) = (self.edge_sigma_m.powi(-2), self.edge_sigma_rad.powi(-2));
+        nalgebra::Matrix3::from_diagonal(&nalgebra::Vector3::new(t, t, r))
+    }
+
     /// Checks every field's range.
     pub fn validate(&self) -> Result<(), LidarError> {
         self.icp.validate()?;
