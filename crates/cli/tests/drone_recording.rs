@@ -128,10 +128,27 @@ fn office_seed_1_from_files_is_the_demo_pose_by_pose() {
     check_seed(1);
 }
 
+// Seeds 2-5: about 30 s each in release, so run on request (`-- --ignored`).
 #[test]
-#[ignore = "about two minutes in release; run with --ignored"]
-fn office_seeds_2_to_5_from_files_are_the_demo_pose_by_pose() {
-    for seed in 2..=5 {
-        check_seed(seed);
-    }
+#[ignore = "about 30 s in release; run with --ignored"]
+fn office_seed_2_from_files_is_the_demo_pose_by_pose() {
+    check_seed(2);
+}
+
+#[test]
+#[ignore = "about 30 s in release; run with --ignored"]
+fn office_seed_3_from_files_is_the_demo_pose_by_pose() {
+    check_seed(3);
+}
+
+#[test]
+#[ignore = "about 30 s in release; run with --ignored"]
+fn office_seed_4_from_files_is_the_demo_pose_by_pose() {
+    check_seed(4);
+}
+
+#[test]
+#[ignore = "about 30 s in release; run with --ignored"]
+fn office_seed_5_from_files_is_the_demo_pose_by_pose() {
+    check_seed(5);
 }
