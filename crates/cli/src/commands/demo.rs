@@ -1,13 +1,15 @@
 //! `slamkit demo`: the whole system on a simulated drone, with no download.
 //!
 //! Simulates a flight through a built-in world (seeded, so every run gives the same data) and
-//! runs layered ICP-SLAM on it ([`slamkit_lidar::layers`]: one 2D map per 5 cm height layer,
+//! pushes its readings into the drone's session ([`slamkit_slam::DroneSlam`], the same a user
+//! runs on a recording with `slamkit lidar LOG --ranges --imu --flow`): layered ICP-SLAM
+//! ([`slamkit_lidar::layers`]: one 2D map per 5 cm height layer,
 //! the layer tracked by the up and down range finders, scans ignored while the drone tilts,
 //! each scan predicted from the drone's recent velocity, its tilt, its yaw-rate gyro (heading
 //! and gyro bias in a Kalman filter that the scans correct) and its downward optical-flow
 //! velocity sensor ([`slamkit_sim::flow`]), matches kept only along the directions the scan
 //! constrains, each fixed scan matched again to the older maps of the layers within 0.2 m),
-//! and particle-filter SLAM ([`slamkit_lidar::rbpf`]) on the
+//! and particle-filter SLAM ([`slamkit_slam::drone::particle_filter`]) on the
 //! same scans in a single 2D map, its height taken from the layered tracker. Neither uses the
 //! scans' rotate–translate–rotate odometry: its per-scan yaw error exceeds 0.19 rad on 5 % of
 //! the `large` flight's scans. The particle filter takes its motion from the layered
