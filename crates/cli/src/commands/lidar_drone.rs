@@ -2,7 +2,8 @@
 //! layered SLAM ([`slamkit_slam::DroneSlam`]) on a recorded flight, the CARMEN log's scans
 //! merged in time order with the range finders, attitude and optical flow of the CSV files
 //! ([`slamkit_io::drone_csv`] documents their columns). `--method rbpf` also runs the particle
-//! filter on the layered increments (seeded by `--seed`). Writes `trajectory.tum`,
+//! filter on the layered increments (`--particles`, seeded by `--seed`; a `[particle_filter]`
+//! table in `--config` replaces both). Writes `trajectory.tum`,
 //! `maps/layer_NNN.{pgm,yaml,png}`, `map.{pgm,yaml,png}`, `cloud.ply`, `report.json`, with
 //! `--method rbpf` `trajectory_pf.tum` and `map_pf.*`, and with `--save-map` the `.skmap`.
 
@@ -15,6 +16,7 @@ use slamkit_core::observation::time_ordered;
 use slamkit_core::Observation;
 use slamkit_io::drone_csv::{read_flow, read_imu, read_ranges};
 use slamkit_io::write_tum;
+use slamkit_lidar::rbpf::RbpfConfig;
 use slamkit_map::{save_map_yaml, save_png};
 use slamkit_slam::drone::particle_filter::drone_pf_config;
 use slamkit_slam::{DroneSlamConfig, Session};
@@ -26,7 +28,10 @@ pub fn run(args: &LidarArgs, ranges: &Path) -> anyhow::Result<()> {
     let started = Instant::now();
     let mut config: DroneSlamConfig = load_config(args.config.as_deref())?;
     if args.method == Method::Rbpf && config.particle_filter.is_none() {
-        config.particle_filter = Some(drone_pf_config(args.seed));
+        config.particle_filter = Some(RbpfConfig {
+            particles: args.particles,
+            ..drone_pf_config(args.seed)
+        });
     }
     let out = prepare_out_dir(&args.out)?;
     let log = slamkit_io::carmen::read_carmen(&args.log)
