@@ -57,6 +57,26 @@ impl Observation {
     }
 }
 
+/// `observations` (each source's already in time order, concatenated in any order) sorted by
+/// time, stably: at equal timestamps a scan or image frame comes after the readings (range,
+/// IMU, flow, odometry) of the same time, so a session that uses the latest reading at a scan
+/// uses the one stamped with the scan's time, as it would have had the sensors been sampled
+/// together; otherwise the given order is kept.
+pub fn time_ordered(mut observations: Vec<Observation>) -> Vec<Observation> {
+    let is_frame = |o: &Observation| {
+        matches!(
+            o,
+            Observation::Scan(_) | Observation::Rgbd(_) | Observation::Stereo(_)
+        )
+    };
+    observations.sort_by(|a, b| {
+        a.timestamp()
+            .total_cmp(&b.timestamp())
+            .then(is_frame(a).cmp(&is_frame(b)))
+    });
+    observations
+}
+
 /// An odometry pose of the robot base in the odometry frame (any origin; only increments
 /// between readings are used).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -158,5 +178,33 @@ mod tests {
         let times: Vec<f64> = obs.iter().map(Observation::timestamp).collect();
         assert_eq!(times, [1.0, 2.0, 3.0, 4.0]);
         assert_eq!(obs[2].kind(), "imu");
+    }
+
+    #[test]
+    fn time_ordered_puts_readings_before_the_scan_of_their_time() {
+        let scan = |t| {
+            Observation::Scan(LaserScan {
+                timestamp: t,
+                angle_min_rad: 0.0,
+                angle_increment_rad: 0.1,
+                ranges_m: vec![1.0],
+                max_range_m: 5.0,
+                odometry: None,
+                base_from_laser: Pose2::identity(),
+            })
+        };
+        let range = |t| {
+            Observation::Range(RangePair {
+                timestamp: t,
+                up_m: None,
+                down_m: Some(t),
+            })
+        };
+        let ordered = time_ordered(vec![scan(0.0), scan(1.0), range(1.0), range(0.5)]);
+        let kinds: Vec<(f64, &str)> = ordered.iter().map(|o| (o.timestamp(), o.kind())).collect();
+        assert_eq!(
+            kinds,
+            [(0.0, "scan"), (0.5, "range"), (1.0, "range"), (1.0, "scan")]
+        );
     }
 }

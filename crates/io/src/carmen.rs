@@ -16,7 +16,8 @@
 //!   numbers are read alike, so a log with several lasers gives their scans interleaved.
 //! * `ROBOTLASER1`: the RAWLASER fields followed by `laser_x laser_y laser_theta robot_x
 //!   robot_y robot_theta tv rv forward_safety side_safety turn_axis ipc_ts host logger_ts`;
-//!   odometry is the robot pose and `base_from_laser = robot⁻¹ · laser`.
+//!   odometry is the robot pose and `base_from_laser = robot⁻¹ · laser` (its rotation
+//!   renormalised to unit length).
 //! * `ODOM x y theta tv rv accel ipc_ts host logger_ts`: scans without odometry of their own
 //!   get it from the ODOM lines just before and just after them in file order, interpolated
 //!   by timestamp when the scan's time lies between theirs, else from the nearer in time.
@@ -442,7 +443,11 @@ fn parse_robotlaser(f: &Fields) -> Result<LaserScan, SkipReason> {
     let poses = f.nums(raw.next_field, 6)?;
     let world_from_laser = Pose2::new([poses[0], poses[1]].into(), poses[2]);
     let world_from_robot = Pose2::new([poses[3], poses[4]].into(), poses[5]);
-    let base_from_laser = world_from_robot.inverse() * world_from_laser;
+    // robot⁻¹ · laser leaves the rotation's length 1 ± 1 ulp (cos² + sin² of the robot's
+    // heading), which every point of the scan would then be scaled by: a simulated flight's
+    // layered SLAM drifted 1 mm from the same scans in memory (office, seed 3).
+    let mut base_from_laser = world_from_robot.inverse() * world_from_laser;
+    base_from_laser.rotation.renormalize();
     if !base_from_laser
         .translation
         .vector

@@ -6,9 +6,12 @@
 //! * A scan with odometry becomes a `ROBOTLASER1` line carrying the laser pose
 //!   (`odometry · base_from_laser`) and the robot pose (`odometry`); one without becomes a
 //!   `RAWLASER1` line. Velocities, safety distances and remissions are written as 0.
-//! * Ranges are written in Rust's shortest round-trip form, so they read back bit for bit;
-//!   angles and poses get 9 decimals; timestamps get 6 (CARMEN's microseconds), as the
-//!   benchmark's relations files match log timestamps to the microsecond.
+//! * Ranges and the beam layout (first angle, field of view, angular resolution, maximum
+//!   range) are written in Rust's shortest round-trip form, so a scan reads back bit for bit
+//!   (a rounded resolution turns the last beams of a 512-beam scan by 1e-7 rad, which moved a
+//!   simulated drone flight's layered SLAM trajectory by up to 0.25 m); poses get 9 decimals;
+//!   timestamps get 6 (CARMEN's microseconds), as the benchmark's relations files match log
+//!   timestamps to the microsecond.
 //! * Relations: `t1 t2 x y z roll pitch yaw` a line after a `#` header, the motion from the pose
 //!   at `t1` to the pose at `t2` in the frame of the first.
 //!
@@ -64,10 +67,7 @@ fn carmen_line(out: &mut String, scan: &LaserScan) -> Result<(), String> {
         "RAWLASER1"
     };
     let [start, fov, res, max] = header;
-    let _ = write!(
-        out,
-        "{name} 0 {start:.9} {fov:.9} {res:.9} {max} 0.01 0 {n}"
-    );
+    let _ = write!(out, "{name} 0 {start} {fov} {res} {max} 0.01 0 {n}");
     for r in &scan.ranges_m {
         let _ = write!(out, " {r}");
     }

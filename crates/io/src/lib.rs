@@ -12,6 +12,8 @@
 //!   them by format name.
 //! * Writers for simulated data: [`tum_rgbd_writer`], [`kitti_writer`] (images through
 //!   [`image_writer`]), [`carmen_writer`].
+//! * [`drone_csv`]: a drone's range finders, attitude and gyro, and optical flow as CSV files
+//!   (read and written), the signals layered drone SLAM takes besides the scans.
 //! * 2D lidar logs: [`carmen`] (CARMEN `.clf`, plain or gzip: scans with wheel odometry) and
 //!   [`mrpt_text`] (text dumps of MRPT rawlogs and ground-truth files).
 //! * [`relations`]: ground-truth relations of the 2D SLAM benchmark (`*.relations`,
@@ -22,6 +24,7 @@
 pub mod carmen;
 pub mod carmen_writer;
 pub mod dataset;
+pub mod drone_csv;
 pub mod error;
 pub mod euroc;
 pub mod image_io;

@@ -669,6 +669,12 @@ impl LayeredIcpSlam {
             && d.rotation.angle().abs() <= c.gate_rad + c.gate_growth_radps * since
     }
 
+    /// Every keyframe inserted so far, in time order, with its layer (poses as moved by the
+    /// re-localisations): what a saved map of the layers holds.
+    pub fn keyframes(&self) -> &[LoggedKeyframe] {
+        &self.keyframe_log
+    }
+
     /// The current height layer.
     pub fn current_layer(&self) -> Option<i64> {
         self.current

@@ -506,6 +506,12 @@ impl Rbpf {
         out
     }
 
+    /// The best particle's pose at its last update, as `(scan index, world_from_base)`: the
+    /// filter's estimate now, without walking its ancestry.
+    pub fn best_pose(&self) -> Option<(usize, Pose2)> {
+        self.best().map(|p| (p.node.scan, p.world_from_base))
+    }
+
     /// The best particle's map.
     pub fn best_map(&self) -> Option<&OccupancyGrid> {
         self.best().map(|p| &p.grid)
@@ -524,6 +530,20 @@ impl Rbpf {
             hit_means_bytes: HitMeans::shared_bytes(
                 self.particles.iter().filter_map(|p| p.means.as_ref()),
             ),
+        }
+    }
+
+    /// The counters at the end of a run: those so far with where the odometry came from
+    /// (`wheel_odometry`: the scans' own, else scan-to-scan ICP with `odometry_failures`) and
+    /// the maps' memory now.
+    pub fn final_stats(&self, wheel_odometry: bool, odometry_failures: usize) -> RbpfStats {
+        let memory_end = self.map_memory();
+        RbpfStats {
+            wheel_odometry,
+            odometry_failures,
+            peak_shared_bytes: self.stats.peak_shared_bytes.max(memory_end.shared_bytes),
+            memory_end,
+            ..self.stats
         }
     }
 
@@ -572,13 +592,7 @@ pub fn run_rbpf(
         filter.process(i, scan, odom);
         on_scan(i);
     }
-    filter.stats.wheel_odometry = wheel;
-    filter.stats.odometry_failures = odometry_failures;
-    filter.stats.memory_end = filter.map_memory();
-    filter.stats.peak_shared_bytes = filter
-        .stats
-        .peak_shared_bytes
-        .max(filter.stats.memory_end.shared_bytes);
+    let stats = filter.final_stats(wheel, odometry_failures);
     let poses = interpolate_poses(&filter.best_updates(), &odometry);
     let mut trajectory = Trajectory::new();
     for (scan, pose) in scans.iter().zip(&poses) {
@@ -588,7 +602,7 @@ pub fn run_rbpf(
         trajectory,
         poses,
         map: filter.best_map().cloned(),
-        stats: filter.stats,
+        stats,
         timings: filter.timings,
     })
 }

@@ -19,6 +19,8 @@
 //! * [`error`]: [`SimError`], bad world descriptions and impossible robot paths.
 //! * [`simulation`]: a robot, a world and its sensors; [`Simulation::lidar_run`] gives the scans,
 //!   ranges and ground truth of a whole run.
+//! * [`observations`]: the run's readings as `slamkit_core` [`Observation`](slamkit_core::Observation)s
+//!   in time order, ready for a session.
 //!
 //! Frames: world z up, origin at a floor corner of the room; base x forward, y left, z up;
 //! cameras x right, y down, z forward. Units m, rad, s. Nothing here prints or touches files.
@@ -41,6 +43,7 @@ pub mod flow;
 pub mod ground_robot;
 pub mod lidar;
 pub mod motion;
+pub mod observations;
 pub mod odometry;
 pub mod range_finder;
 pub mod relations;

@@ -10,6 +10,8 @@
 //!
 //! * [`session`]: the [`Session`] trait and [`Update`].
 //! * [`collator`]: restores time order when sources interleave.
+//! * [`drone`]: [`DroneSlam`], layered 2D lidar SLAM for a drone with up/down range finders,
+//!   attitude and gyro, and optionally optical flow and a particle filter.
 //! * [`map_file`]: the `.skmap` container: header, sections, checksum, atomic writes.
 //! * [`lidar`]: [`LidarSlam`], 2D lidar SLAM (ICP-SLAM or a particle filter) and localisation in
 //!   a saved map.
@@ -21,6 +23,7 @@
 //! Nothing in this crate prints, reads arguments or exits the process.
 
 pub mod collator;
+pub mod drone;
 mod error;
 pub mod ground_robot;
 pub mod lidar;
@@ -29,6 +32,7 @@ pub mod session;
 pub mod visual;
 
 pub use collator::Collator;
+pub use drone::{DroneSlam, DroneSlamConfig};
 pub use error::SlamError;
 pub use ground_robot::GroundRobotNav;
 pub use lidar::{LidarMap, LidarMethod, LidarSlam, LidarSlamConfig};

@@ -655,7 +655,7 @@ impl InMap {
 }
 
 /// The tracking status of an ICP-SLAM scan status.
-fn icp_status(status: ScanStatus) -> TrackingStatus {
+pub(crate) fn icp_status(status: ScanStatus) -> TrackingStatus {
     match status {
         ScanStatus::Initialised
         | ScanStatus::Matched

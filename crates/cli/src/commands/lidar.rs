@@ -4,7 +4,7 @@
 //! file is known.
 
 use crate::commands::eval::load_relations;
-use crate::commands::lidar_mcl;
+use crate::commands::{lidar_drone, lidar_mcl};
 use crate::config_file::config_over;
 use crate::output::{peak_rss_bytes, prepare_out_dir, progress_bar, timings_json, write_report};
 use anyhow::Context;
@@ -42,7 +42,7 @@ pub struct LidarArgs {
     /// Particles of the particle filter.
     #[arg(long, default_value_t = 30)]
     pub particles: usize,
-    /// Seed of the particle filter's random draws.
+    /// Seed of the particle filter's random draws (default: the filter's configured seed, 1).
     #[arg(long)]
     pub seed: Option<u64>,
     /// Localise in this saved map instead of building one: a `.skmap` (the start pose is found
@@ -62,6 +62,18 @@ pub struct LidarArgs {
     /// MAP.yaml`.
     #[arg(long)]
     pub config: Option<PathBuf>,
+    /// A drone's up/down range finders (`timestamp,up_m,down_m`): run the drone's layered
+    /// SLAM on the log (see `slamkit_io::drone_csv` for the files' columns).
+    #[arg(long)]
+    pub ranges: Option<PathBuf>,
+    /// The drone's attitude and gyro heading (`timestamp,roll_rad,pitch_rad,gyro_yaw_rad`);
+    /// with `--ranges`.
+    #[arg(long, requires = "ranges")]
+    pub imu: Option<PathBuf>,
+    /// The drone's optical flow (`timestamp,integration_s,forward_mps,left_mps`); with
+    /// `--ranges`.
+    #[arg(long, requires = "ranges")]
+    pub flow: Option<PathBuf>,
     /// Benchmark relations to score against; by default `<log stem>.relations` beside the log.
     #[arg(long)]
     pub relations: Option<PathBuf>,
@@ -72,6 +84,13 @@ pub struct LidarArgs {
 
 /// Runs `slamkit lidar`.
 pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
+    if let Some(ranges) = &args.ranges {
+        anyhow::ensure!(
+            args.localize.is_none() && args.continue_map.is_none(),
+            "--localize and --continue are not available for drone runs (--ranges) yet"
+        );
+        return lidar_drone::run(args, ranges);
+    }
     if let Some(map) = args.localize.as_deref().filter(|p| !is_skmap(p)) {
         return lidar_mcl::run_localization(args, map);
     }

@@ -1,8 +1,10 @@
 //! One module per subcommand: its clap arguments and its `run` function.
 
 pub mod demo;
+pub mod drone_files;
 pub mod eval;
 pub mod lidar;
+pub mod lidar_drone;
 pub mod lidar_mcl;
 pub mod map;
 pub mod nav;

@@ -7,6 +7,13 @@
 //!   `lidar.relations` (Freiburg benchmark relations: scans 1 s apart and random far pairs, in
 //!   the plane: z, roll and pitch 0);
 //! * `range`: `ranges.csv` (`timestamp,up_m,down_m`, empty when nothing is in range);
+//! * `imu`: `imu.csv` (`timestamp,roll_rad,pitch_rad,gyro_yaw_rad`: attitude and the heading
+//!   integrated from the yaw-rate gyro, at the lidar's times);
+//! * `flow`: `flow.csv` (`timestamp,integration_s,forward_mps,left_mps`: the downward
+//!   optical-flow sensor's mean body-frame velocity over each period, empty when it saw no
+//!   surface); the three CSV files are those `slamkit lidar LOG --ranges --imu --flow` reads
+//!   ([`slamkit_io::drone_csv`] documents them) and give the drone's layered SLAM the same input
+//!   as `slamkit demo` on the same world and seed;
 //! * `rgbd`: a TUM RGB-D folder `tum_rgbd_fr1/` (30 Hz, 640×480, Freiburg 1 intrinsics, depth
 //!   at 5000 units per metre, `groundtruth.txt` of the camera), see [`cameras`];
 //! * `stereo`: a KITTI odometry folder `kitti_stereo/` (10 Hz rectified grey pair, 0.12 m
@@ -22,13 +29,14 @@ use crate::config_file::config_over;
 use crate::output::{peak_rss_bytes, prepare_out_dir, timings_json, write_report};
 use anyhow::Context;
 use serde_json::json;
+use slamkit_core::observation::{FlowSample, ImuSample, RangePair};
 use slamkit_core::pose::{pose2_to_pose3, pose3_to_pose2};
 use slamkit_core::{StageTimings, Trajectory};
 use slamkit_io::carmen_writer::{write_carmen, write_relations};
+use slamkit_io::drone_csv::{self, write_flow, write_imu};
 use slamkit_io::relations::Relation;
 use slamkit_io::write_tum;
 use slamkit_sim::{relation_pairs, RobotKind, SimConfig, Simulation, Stream, World};
-use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -38,7 +46,7 @@ pub struct SimArgs {
     /// World: `small`, `large`, `office`, or a TOML world file.
     #[arg(long)]
     pub world: String,
-    /// Sensors to simulate, comma separated: lidar2d (or lidar), range, rgbd, stereo.
+    /// Sensors to simulate, comma separated: lidar2d (or lidar), range, imu, flow, rgbd, stereo.
     #[arg(long, value_delimiter = ',', default_value = "lidar2d")]
     pub sensors: Vec<String>,
     /// The robot: the drone flies the world's flight path, the ground robot drives its drive
@@ -75,11 +83,13 @@ pub enum Robot {
 enum Sensor {
     Lidar2d,
     Range,
+    Imu,
+    Flow,
     Rgbd,
     Stereo,
 }
 
-const SENSOR_NAMES: &str = "lidar2d, range, rgbd, stereo";
+const SENSOR_NAMES: &str = "lidar2d, range, imu, flow, rgbd, stereo";
 
 fn parse_sensors(names: &[String]) -> anyhow::Result<Vec<Sensor>> {
     let mut sensors = Vec::new();
@@ -87,6 +97,8 @@ fn parse_sensors(names: &[String]) -> anyhow::Result<Vec<Sensor>> {
         let sensor = match name.trim() {
             "lidar2d" | "lidar" => Sensor::Lidar2d,
             "range" => Sensor::Range,
+            "imu" => Sensor::Imu,
+            "flow" => Sensor::Flow,
             "rgbd" => Sensor::Rgbd,
             "stereo" => Sensor::Stereo,
             other => anyhow::bail!("unknown sensor {other:?} (available: {SENSOR_NAMES})"),
@@ -134,6 +146,24 @@ pub fn run(args: &SimArgs) -> anyhow::Result<()> {
     if sensors.contains(&Sensor::Range) {
         let readings = write_ranges(&sim, &times(config.range_finder.rate_hz), &out)?;
         frames.insert("range".into(), json!({ "readings": readings }));
+    }
+    if sensors.contains(&Sensor::Imu) {
+        let samples: Vec<ImuSample> = sim
+            .attitude_readings(&lidar_times)
+            .iter()
+            .map(ImuSample::from)
+            .collect();
+        write_imu(&out.join("imu.csv"), &samples)?;
+        frames.insert("imu".into(), json!({ "readings": samples.len() }));
+    }
+    if sensors.contains(&Sensor::Flow) {
+        let samples: Vec<FlowSample> = sim
+            .flow_readings(&times(config.flow.rate_hz))
+            .iter()
+            .map(FlowSample::from)
+            .collect();
+        write_flow(&out.join("flow.csv"), &samples)?;
+        frames.insert("flow".into(), json!({ "readings": samples.len() }));
     }
     let mut timings = StageTimings::default();
     if sensors.contains(&Sensor::Rgbd) {
@@ -199,14 +229,12 @@ fn write_lidar(
 
 /// Writes `ranges.csv` with the readings at `times`; returns their number.
 fn write_ranges(sim: &Simulation, times: &[f64], out: &Path) -> anyhow::Result<usize> {
-    let readings = sim.range_readings(times);
-    let mut text = String::from("timestamp,up_m,down_m\n");
-    let field = |r: Option<f64>| r.map(|v| v.to_string()).unwrap_or_default();
-    for r in &readings {
-        let (t, up, down) = (r.timestamp, field(r.up_m), field(r.down_m));
-        let _ = writeln!(text, "{t:.6},{up},{down}");
-    }
-    write_file(&out.join("ranges.csv"), &text)?;
+    let readings: Vec<RangePair> = sim
+        .range_readings(times)
+        .iter()
+        .map(RangePair::from)
+        .collect();
+    drone_csv::write_ranges(&out.join("ranges.csv"), &readings)?;
     Ok(readings.len())
 }
 

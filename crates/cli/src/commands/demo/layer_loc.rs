@@ -1,27 +1,20 @@
-//! The kidnapped drone: after the flight, the particle-filter layer choice of issue #5
-//! ([`slamkit_lidar::layers::layer_pf`]) re-localises the drone with no pose prior on the
-//! per-layer grid maps layered ICP-SLAM built. From a start scan in the second half of the
-//! flight, the up and down range readings give the candidate layers; one Monte Carlo
-//! localiser per candidate (Dellaert et al., ICRA 1999), globally initialised over that
-//! layer's map, then takes the scans to the end of the flight with the layered estimate's pose
-//! increments as its motion and the height tracker's layer changes as its climbs and
-//! descents. The
-//! hypothesis whose particles spread least is chosen; its start layer is compared with the
-//! true layer (true height over layer height) at the start, its layer at the end with the true
-//! one then, and its position with the ground truth.
+//! The kidnapped-drone check: after the flight, the particle-filter layer choice
+//! ([`slamkit_slam::drone::layer_choice`]) re-localises the drone with no pose prior on the
+//! per-layer grid maps layered ICP-SLAM built, from a start scan in the second half of the
+//! flight to its end. Here only the scoring: the chosen start layer is compared with the
+//! true layer (true height over layer height) at the start, its layer at the end with the
+//! true one then, and its position with the ground truth.
 
-use super::latest_reading;
 use nalgebra::Vector2;
 use serde_json::json;
 use slamkit_core::Pose2;
 use slamkit_lidar::layers::height::HeightConfig;
-use slamkit_lidar::layers::layer_pf::{
-    candidate_layers, LayerHypothesis, LayerLocaliser, LayerPfConfig, LayerPfError,
-};
-use slamkit_lidar::layers::{LayerScanStatus, LayeredEstimate};
-use slamkit_lidar::particles::moved_enough;
+use slamkit_lidar::layers::layer_pf::{LayerHypothesis, LayerPfConfig, LayerPfError};
+use slamkit_lidar::layers::LayerScanStatus;
 use slamkit_map::OccupancyGrid;
 use slamkit_sim::LidarRun;
+use slamkit_slam::drone::layer_choice::LayerChoice;
+use slamkit_slam::drone::ScanRecord;
 use std::collections::BTreeMap;
 
 /// The start scan is the first one after this share of the flight whose true layer has a map.
@@ -96,24 +89,25 @@ fn config(seed: u64) -> LayerPfConfig {
 /// has a map.
 fn start_scan(
     run: &LidarRun,
-    estimates: &[LayeredEstimate],
+    scans: &[ScanRecord],
     maps: &BTreeMap<i64, OccupancyGrid>,
     layer_height_m: f64,
 ) -> Option<usize> {
     let first = (run.scans.len() as f64 * START_FRACTION) as usize;
     (first..run.scans.len()).find(|&i| {
         true_layer(run, i, layer_height_m).is_some_and(|k| maps.contains_key(&k))
-            && estimates
-                .get(i)
-                .is_some_and(|e| e.layer.is_some() && matches!(e.status, LayerScanStatus::Slam(_)))
+            && scans.get(i).is_some_and(|s| {
+                s.estimate.layer.is_some() && matches!(s.estimate.status, LayerScanStatus::Slam(_))
+            })
     })
 }
 
-/// Runs the re-localisation on `maps` (the layer grids in the simulator's frame), with the
-/// layers and range-finder offsets of `height` (those layered ICP-SLAM ran with).
+/// Runs the layer choice on `maps` (the layer grids in the simulator's frame), with the layers
+/// and range-finder offsets of `height` (those layered ICP-SLAM ran with), from the start
+/// scan to the end of the flight, noting the best hypothesis after each update.
 pub fn relocalise(
     run: &LidarRun,
-    estimates: &[LayeredEstimate],
+    scans: &[ScanRecord],
     maps: &BTreeMap<i64, OccupancyGrid>,
     height: &HeightConfig,
     ceiling_m: f64,
@@ -121,20 +115,10 @@ pub fn relocalise(
 ) -> Result<LayerLocalisation, NotRun> {
     let started = std::time::Instant::now();
     let h = height.layer_height_m;
-    let start = start_scan(run, estimates, maps, h).ok_or(NotRun::NoStartScan)?;
-    let scan = run.scans.get(start).ok_or(NotRun::NoStartScan)?;
-    let start_estimate = estimates.get(start).ok_or(NotRun::NoStartScan)?;
-    let range = latest_reading(&run.ranges, scan.timestamp);
-    let candidates = candidate_layers(
-        maps.keys().copied(),
-        range.and_then(|r| r.up_m),
-        range.and_then(|r| r.down_m),
-        ceiling_m,
-        height,
-    );
-    let config = config(seed);
-    let mut localiser = match LayerLocaliser::new(maps, &candidates, &config) {
-        Ok(l) => l,
+    let start = start_scan(run, scans, maps, h).ok_or(NotRun::NoStartScan)?;
+    let range = scans.get(start).ok_or(NotRun::NoStartScan)?.range;
+    let mut choice = match LayerChoice::new(maps, range, ceiling_m, height, config(seed)) {
+        Ok(c) => c,
         Err(LayerPfError::NoMappedCandidate { candidates }) => {
             return Err(NotRun::NoMappedCandidate(candidates))
         }
@@ -142,7 +126,7 @@ pub fn relocalise(
     };
     let mut found = LayerLocalisation {
         start_scan: start,
-        candidates,
+        candidates: choice.candidates().to_vec(),
         hypotheses: Vec::new(),
         chosen: None,
         true_layer: true_layer(run, start, h).unwrap_or_default(),
@@ -152,13 +136,20 @@ pub fn relocalise(
         error_early_m: None,
         error_end_m: None,
         scans: 0,
-        particles: localiser.global_particles(),
+        particles: choice.global_particles(),
         seconds: 0.0,
     };
-    let first = (start_estimate.smooth_world_from_base, start_estimate.layer);
-    if let Some(last) = follow(run, estimates, first, &config, &mut localiser, &mut found) {
+    let mut last = None;
+    for (i, (scan, record)) in run.scans.iter().zip(scans).enumerate().skip(start) {
+        if choice.push(scan, &record.estimate) {
+            last = Some(i);
+            note(run, i, choice.best(), &mut found);
+        }
+    }
+    found.updates = choice.updates();
+    if let Some(last) = last {
         found.true_layer_end = true_layer(run, last, h).unwrap_or_default();
-        found.hypotheses = localiser
+        found.hypotheses = choice
             .hypotheses()
             .into_iter()
             .map(|hyp| (hyp, error_m(run, last, &hyp.estimate.world_from_base)))
@@ -168,49 +159,9 @@ pub fn relocalise(
     Ok(found)
 }
 
-/// Gives the localiser every scan from `found.start_scan` to the end of the flight, due as in
-/// `run_mcl` (once the drone moved or turned enough: updating on every scan of a hover counts
-/// the same view again and again), skipping the tilted ones (they cut the room at a slant, and
-/// layered ICP-SLAM skips them too), and notes the best hypothesis after each update. `first`
-/// is the start scan's planar pose and tracked layer. Returns the index of the last scan
-/// updated on.
-fn follow(
-    run: &LidarRun,
-    estimates: &[LayeredEstimate],
-    first: (Pose2, Option<i64>),
-    config: &LayerPfConfig,
-    localiser: &mut LayerLocaliser,
-    found: &mut LayerLocalisation,
-) -> Option<usize> {
-    let start = found.start_scan;
-    let mut last = None;
-    let mut previous = (first.0, first.1.unwrap_or_default());
-    for (i, (scan, e)) in run.scans.iter().zip(estimates).enumerate().skip(start) {
-        let increment = previous.0.inverse() * e.smooth_world_from_base;
-        let due = i == start
-            || moved_enough(
-                &increment,
-                config.mcl.update_linear_m,
-                config.mcl.update_angular_rad,
-            );
-        let (Some(layer), true) = (e.layer, matches!(e.status, LayerScanStatus::Slam(_))) else {
-            continue;
-        };
-        if !due {
-            continue;
-        }
-        localiser.update(&increment, layer - previous.1, scan);
-        previous = (e.smooth_world_from_base, layer);
-        found.updates += 1;
-        last = Some(i);
-        note(run, i, localiser, found);
-    }
-    last
-}
-
-/// Notes the best hypothesis after the update at scan `i`.
-fn note(run: &LidarRun, i: usize, localiser: &LayerLocaliser, found: &mut LayerLocalisation) {
-    let Some(best) = localiser.best() else {
+/// Notes `best`, the best hypothesis after the update at scan `i`.
+fn note(run: &LidarRun, i: usize, best: Option<LayerHypothesis>, found: &mut LayerLocalisation) {
+    let Some(best) = best else {
         return;
     };
     let scans = i + 1 - found.start_scan;

@@ -1,0 +1,115 @@
+//! `slamkit lidar LOG --ranges ranges.csv [--imu imu.csv] [--flow flow.csv]`: the drone's
+//! layered SLAM ([`slamkit_slam::DroneSlam`]) on a recorded flight, the CARMEN log's scans
+//! merged in time order with the range finders, attitude and optical flow of the CSV files
+//! ([`slamkit_io::drone_csv`] documents their columns). `--method rbpf` also runs the particle
+//! filter on the layered increments (`--particles`, seeded by `--seed`; a `[particle_filter]`
+//! table in `--config` replaces both). Writes `trajectory.tum`,
+//! `maps/layer_NNN.{pgm,yaml,png}`, `map.{pgm,yaml,png}`, `cloud.ply`, `report.json`, with
+//! `--method rbpf` `trajectory_pf.tum` and `map_pf.*`, and with `--save-map` the `.skmap`.
+
+use crate::commands::drone_files::{processed_and_failed, run_session, write_maps, write_ply};
+use crate::commands::lidar::{load_config, print_summary, relations_metrics, LidarArgs, Method};
+use crate::output::{peak_rss_bytes, prepare_out_dir, timings_json, write_report};
+use anyhow::Context;
+use serde_json::json;
+use slamkit_core::observation::time_ordered;
+use slamkit_core::Observation;
+use slamkit_io::drone_csv::{read_flow, read_imu, read_ranges};
+use slamkit_io::write_tum;
+use slamkit_lidar::rbpf::RbpfConfig;
+use slamkit_map::{save_map_yaml, save_png};
+use slamkit_slam::drone::particle_filter::drone_pf_config;
+use slamkit_slam::{DroneSlamConfig, Session};
+use std::path::Path;
+use std::time::Instant;
+
+/// Runs the drone session on the log and the CSV files of `args` (`ranges` is `--ranges`).
+pub fn run(args: &LidarArgs, ranges: &Path) -> anyhow::Result<()> {
+    let started = Instant::now();
+    let mut config: DroneSlamConfig = load_config(args.config.as_deref())?;
+    if args.method == Method::Rbpf && config.particle_filter.is_none() {
+        config.particle_filter = Some(RbpfConfig {
+            particles: args.particles,
+            ..drone_pf_config(args.seed.unwrap_or(RbpfConfig::default().seed))
+        });
+    }
+    let out = prepare_out_dir(&args.out)?;
+    let log = slamkit_io::carmen::read_carmen(&args.log)
+        .with_context(|| format!("reading log {}", args.log.display()))?;
+    if log.scans.is_empty() {
+        anyhow::bail!("{} holds no laser scan", args.log.display());
+    }
+    let mut observations: Vec<Observation> = read_ranges(ranges)?
+        .into_iter()
+        .map(Observation::Range)
+        .collect();
+    if let Some(path) = &args.imu {
+        observations.extend(read_imu(path)?.into_iter().map(Observation::Imu));
+    }
+    if let Some(path) = &args.flow {
+        observations.extend(read_flow(path)?.into_iter().map(Observation::Flow));
+    }
+    let counts = json!({
+        "ranges": observations.iter().filter(|o| matches!(o, Observation::Range(_))).count(),
+        "imu": observations.iter().filter(|o| matches!(o, Observation::Imu(_))).count(),
+        "flow": observations.iter().filter(|o| matches!(o, Observation::Flow(_))).count(),
+    });
+    observations.extend(log.scans.iter().cloned().map(Observation::Scan));
+    let session = run_session(time_ordered(observations), config.clone())?;
+
+    let trajectory = session.trajectory();
+    write_tum(&out.join("trajectory.tum"), &trajectory)?;
+    let estimates = session.estimates();
+    let layer_height_m = config.layers.height.layer_height_m;
+    let (layer_files, _) = write_maps(
+        &out,
+        &log.scans,
+        &estimates,
+        &session.map_from_world(),
+        layer_height_m,
+    )?;
+    write_ply(&out.join("cloud.ply"), &session.merged_cloud())?;
+    let pf = match (session.particle_filter(), session.pf_trajectory()) {
+        (Some(pf), Some(poses)) => {
+            write_tum(&out.join("trajectory_pf.tum"), &poses)?;
+            if let Some(grid) = pf.map() {
+                save_map_yaml(grid, &out.join("map_pf.yaml"))?;
+                save_png(grid, &out.join("map_pf.png"))?;
+            }
+            json!({ "stats": pf.stats(), "timings_ms": timings_json(pf.timings()) })
+        }
+        _ => json!(null),
+    };
+    if let Some(path) = &args.save_map {
+        session.save(path)?;
+    }
+    let stats = session.stats();
+    let (processed, failed) = processed_and_failed(&estimates);
+    let report = json!({
+        "input": { "log": args.log, "ranges": ranges, "imu": args.imu, "flow": args.flow },
+        "method": "layered",
+        "config": config,
+        "frames": {
+            "read": log.scans.len(),
+            "processed": processed,
+            "skipped": stats.scans_tilted + stats.scans_without_height,
+            "failed": failed,
+            "unreadable_lines": log.skipped.len(),
+        },
+        "readings": counts,
+        "stats": stats,
+        "layers": layer_files
+            .iter()
+            .map(|l| json!({ "layer": l.layer, "z_range_m": l.z_range_m, "scans": l.scans }))
+            .collect::<Vec<_>>(),
+        "pf": pf,
+        "wall_seconds": started.elapsed().as_secs_f64(),
+        "timings_ms": timings_json(session.timings()),
+        "peak_rss_bytes": peak_rss_bytes(),
+        "metrics": relations_metrics(args, &trajectory)?,
+    });
+    write_report(&out, &report)?;
+    println!("{} height layers", layer_files.len());
+    print_summary(&out, &report);
+    Ok(())
+}
