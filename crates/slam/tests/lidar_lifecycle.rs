@@ -173,12 +173,23 @@ fn a_map_of_another_rig_or_a_broken_file_is_one_clear_error() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("broken.skmap");
     std::fs::write(&path, b"not a map at all").unwrap();
-    let err = LidarMap::load(&path).unwrap_err().to_string();
+    let err = chain(&LidarMap::load(&path).unwrap_err());
     assert!(
         err.contains("broken.skmap") && err.contains("not a slamkit map"),
         "{err}"
     );
     let missing = dir.path().join("missing.skmap");
-    let err = LidarMap::load(Path::new(&missing)).unwrap_err().to_string();
+    let err = chain(&LidarMap::load(Path::new(&missing)).unwrap_err());
     assert!(err.contains("missing.skmap"), "{err}");
+}
+
+/// An error and its causes on one line, as the CLI prints them.
+fn chain(err: &dyn std::error::Error) -> String {
+    let mut text = err.to_string();
+    let mut source = err.source();
+    while let Some(cause) = source {
+        text = format!("{text}: {cause}");
+        source = cause.source();
+    }
+    text
 }
