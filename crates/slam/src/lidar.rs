@@ -493,7 +493,9 @@ impl ParticleRun {
         let step = self.filter.process(index, &scan, &odometry);
         self.poses.push(odometry);
         self.scans.push(scan);
-        let best = self.filter.best_updates().last().copied();
+        // The best particle's last update, without walking its ancestry (which grows with
+        // every update: walking it at every scan made the session quadratic in the log).
+        let best = self.filter.best_pose();
         let pose = best.and_then(|(at, pose)| {
             let then = self.poses.get(at)?;
             Some(pose * (then.inverse() * odometry))
