@@ -19,6 +19,7 @@ use crate::cloud::{estimate_normals, scan_points, voxel_downsample};
 use crate::correlative::{correlative_match, CorrelativeConfig};
 use crate::error::check_fields;
 use crate::icp::{align, IcpConfig, IcpResult};
+use crate::particles::moved_enough;
 use crate::point_map::{Keyframe, KeyframeMap};
 use crate::pose_graph::{Edge, PoseGraph};
 use crate::LidarError;
@@ -308,9 +309,11 @@ impl Frozen {
     /// True when `guess` is far enough from the last match to match again.
     fn moved(&self, guess: &Pose2) -> bool {
         self.last_matched.map_or(true, |last| {
-            let d = last.inverse() * guess;
-            d.translation.vector.norm() >= self.options.min_motion_m
-                || d.rotation.angle().abs() >= self.options.min_motion_rad
+            moved_enough(
+                &(last.inverse() * guess),
+                self.options.min_motion_m,
+                self.options.min_motion_rad,
+            )
         })
     }
 }

@@ -19,6 +19,7 @@
 
 pub mod map;
 
+use crate::map_file::{MapFile, MapFileError};
 use crate::session::{MapChange, Session, TrackingStatus, Update};
 use crate::SlamError;
 pub use map::{LidarMap, MapKeyframe, MapScan};
@@ -28,6 +29,7 @@ use slamkit_core::{LaserScan, Observation, Pose2, StageTimings, Trajectory};
 use slamkit_lidar::global_search::{GlobalOutcome, GlobalSearch, GlobalSearchConfig};
 use slamkit_lidar::icp_slam::{IcpSlam, IcpSlamConfig, LocaliseOptions, ScanStatus};
 use slamkit_lidar::motion::{is_finite_pose, ScanOdometry};
+use slamkit_lidar::particles::moved_enough;
 use slamkit_lidar::pose_graph::Edge;
 use slamkit_lidar::rbpf::{interpolate_poses, Rbpf, RbpfConfig};
 use slamkit_map::{OccupancyGrid, OccupancyGridConfig};
@@ -403,6 +405,21 @@ impl LidarSlam {
         }
     }
 
+    /// The map as it stands as a map file, its header noting how it was made; what
+    /// [`Session::save`] writes (build it once to write it to several places).
+    pub fn map_file(&self) -> Result<MapFile, MapFileError> {
+        let notes = serde_json::json!({
+            "method": match (&self.mode, self.config.method) {
+                (Mode::InMap(m), _) if m.extend => "icp (continued)",
+                (Mode::InMap(_), _) => "loaded",
+                (_, LidarMethod::Icp) => "icp",
+                (_, LidarMethod::Rbpf) => "rbpf",
+            },
+            "scans": self.stats.scans,
+        });
+        self.map().to_new_file(notes)
+    }
+
     /// Counters so far.
     pub fn stats(&self) -> LidarSessionStats {
         self.stats
@@ -456,16 +473,12 @@ impl Session for LidarSlam {
     }
 
     fn save(&self, path: &Path) -> Result<(), SlamError> {
-        let notes = serde_json::json!({
-            "method": match (&self.mode, self.config.method) {
-                (Mode::InMap(m), _) if m.extend => "icp (continued)",
-                (Mode::InMap(_), _) => "loaded",
-                (_, LidarMethod::Icp) => "icp",
-                (_, LidarMethod::Rbpf) => "rbpf",
-            },
-            "scans": self.stats.scans,
-        });
-        self.map().save(path, notes)
+        self.map_file()
+            .and_then(|f| f.save(path))
+            .map_err(|source| SlamError::MapFile {
+                path: path.to_path_buf(),
+                source,
+            })
     }
 }
 
@@ -528,9 +541,11 @@ impl ParticleRun {
                 keyframe_from_base: last.map_or(*pose, |l| l.inverse() * pose),
             });
             let far = last.map_or(true, |l| {
-                let d = l.inverse() * pose;
-                d.translation.vector.norm() >= icp.insertion_linear_m
-                    || d.rotation.angle().abs() >= icp.insertion_angular_rad
+                moved_enough(
+                    &(l.inverse() * pose),
+                    icp.insertion_linear_m,
+                    icp.insertion_angular_rad,
+                )
             });
             if !far || icp.scan_points(scan).len() < icp.min_scan_points {
                 continue;
@@ -599,9 +614,11 @@ impl InMap {
         let due = match self.since_search {
             None => true,
             Some((_, Some(then))) if odometry.is_some() => odometry.is_some_and(|now| {
-                let d = then.inverse() * now;
-                d.translation.vector.norm() >= config.search_after_m
-                    || d.rotation.angle().abs() >= config.search_after_rad
+                moved_enough(
+                    &(then.inverse() * now),
+                    config.search_after_m,
+                    config.search_after_rad,
+                )
             }),
             Some((n, _)) => n + 1 >= config.search_every_scans.max(1),
         };

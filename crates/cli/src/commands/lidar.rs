@@ -17,7 +17,7 @@ use slamkit_lidar::icp_slam::IcpSlamConfig;
 use slamkit_lidar::rbpf::RbpfConfig;
 use slamkit_map::{save_map_yaml, save_png, OccupancyGrid, OccupancyGridConfig};
 use slamkit_slam::lidar::{grid_of_scans, LidarMap};
-use slamkit_slam::{LidarMethod, LidarSlam, LidarSlamConfig, Session};
+use slamkit_slam::{LidarMethod, LidarSlam, LidarSlamConfig};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -139,8 +139,9 @@ pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
     let grid = output_grid(&session, &log, args.localize.is_some())?;
     save_map_yaml(&grid, &out.join("map.yaml"))?;
     save_png(&grid, &out.join("map.png"))?;
+    let map_file = session.map_file()?;
     for path in std::iter::once(out.join("map.skmap")).chain(args.save_map.clone()) {
-        session
+        map_file
             .save(&path)
             .with_context(|| format!("saving the map to {}", path.display()))?;
     }
@@ -182,7 +183,7 @@ pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
 }
 
 /// True for a path naming a `.skmap` file.
-fn is_skmap(path: &Path) -> bool {
+pub(crate) fn is_skmap(path: &Path) -> bool {
     path.extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("skmap"))
 }

@@ -38,10 +38,7 @@ impl From<Planner> for GridPlanner {
 
 /// The occupancy grid of a ROS map_server YAML, or of a `.skmap` (rebuilt from its keyframes).
 fn load_grid(path: &Path) -> anyhow::Result<slamkit_map::OccupancyGrid> {
-    let skmap = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("skmap"));
-    if skmap {
+    if crate::commands::lidar::is_skmap(path) {
         let (map, _) = slamkit_slam::lidar::LidarMap::load(path)?;
         return Ok(map.grid(slamkit_map::OccupancyGridConfig::default())?);
     }

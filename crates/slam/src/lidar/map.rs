@@ -78,14 +78,19 @@ impl LidarMap {
 
     /// Writes the map with a new header carrying `notes`.
     pub fn save(&self, path: &Path, notes: serde_json::Value) -> Result<(), SlamError> {
-        let mut header = MapHeader::new(Rig::Lidar2d, self.keyframes.len(), self.extent_m());
-        header.notes = notes;
-        self.to_file(header)
+        self.to_new_file(notes)
             .and_then(|f| f.save(path))
             .map_err(|source| SlamError::MapFile {
                 path: path.to_path_buf(),
                 source,
             })
+    }
+
+    /// The map as a map file with a new header carrying `notes`.
+    pub fn to_new_file(&self, notes: serde_json::Value) -> Result<MapFile, MapFileError> {
+        let mut header = MapHeader::new(Rig::Lidar2d, self.keyframes.len(), self.extent_m());
+        header.notes = notes;
+        self.to_file(header)
     }
 
     /// The map as a map file with `header`.
