@@ -4,8 +4,8 @@
 //! benchmarks and users call it, so it changes only on purpose.
 
 mod commands;
-mod config_file;
 mod output;
+mod settings;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;

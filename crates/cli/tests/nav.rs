@@ -82,7 +82,7 @@ fn bad_goals_are_clear_errors() {
     );
     let stderr = String::from_utf8_lossy(&result.stderr);
     assert!(
-        !result.status.success() && stderr.contains("parsing"),
+        !result.status.success() && stderr.contains("unknown field `nope`"),
         "{stderr}"
     );
 }

@@ -13,9 +13,9 @@
 
 use slamkit_core::Trajectory;
 use slamkit_io::{write_tum, Dataset, DatasetFormat};
+use slamkit_slam::profile::Profile;
 use slamkit_slam::visual::{self, PointMapping};
 use slamkit_slam::{TrackingStatus, VisualSlam};
-use slamkit_vo::depth::DepthRegistration;
 use slamkit_vo::VoConfig;
 use std::path::PathBuf;
 
@@ -25,10 +25,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let out = args.next().map(PathBuf::from);
 
     let dataset = Dataset::open(&folder, DatasetFormat::SevenScenes)?;
-    let config = VoConfig {
-        register_depth: Some(DepthRegistration::default()),
-        ..VoConfig::default()
-    };
+    // 7-Scenes: a Kinect v1 whose colour is not registered to depth
+    let config = Profile::builtin("kinect-v1")?.apply("vo", VoConfig::default())?;
     let mut session =
         VisualSlam::new(&config, visual::rig_of(&dataset))?.with_point_map(PointMapping::Off)?;
 

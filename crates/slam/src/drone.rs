@@ -41,6 +41,12 @@ use slamkit_lidar::rbpf::RbpfConfig;
 use std::path::Path;
 
 /// Settings of a [`DroneSlam`] session.
+///
+/// Basic (what a new drone needs): `layers.height` (`layer_height_m`, the range finders'
+/// mounting offsets `up_offset_m` / `down_offset_m`), `layers.slam.min_range_m` /
+/// `layers.slam.max_range_m` (the lidar's usable ranges), `layers.max_tilt_rad` (scans taken
+/// at steeper tilts are not matched), `layers.slam.map_voxel_m` (map resolution), and
+/// `particle_filter` to run the particle filter too. The rest is advanced.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct DroneSlamConfig {

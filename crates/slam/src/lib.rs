@@ -13,6 +13,8 @@
 //! * [`drone`]: [`DroneSlam`], layered 2D lidar SLAM for a drone with up/down range finders,
 //!   attitude and gyro, and optionally optical flow and a particle filter.
 //! * [`map_file`]: the `.skmap` container: header, sections, checksum, atomic writes.
+//! * [`profile`]: named profiles (`config/*.toml`) and configuration files laid over a
+//!   session's settings.
 //! * [`lidar`]: [`LidarSlam`], 2D lidar SLAM (ICP-SLAM or a particle filter) and localisation in
 //!   a saved map.
 //! * [`visual`]: [`VisualSlam`], visual odometry of an RGB-D or stereo camera as a session, and
@@ -28,6 +30,7 @@ mod error;
 pub mod ground_robot;
 pub mod lidar;
 pub mod map_file;
+pub mod profile;
 pub mod session;
 pub mod visual;
 

@@ -7,8 +7,8 @@ use slamkit_testdata::data;
 use std::path::Path;
 
 use slamkit_io::{Dataset, DatasetFormat};
+use slamkit_slam::profile::Profile;
 use slamkit_slam::visual::{self, RunOptions, VisualSlam};
-use slamkit_vo::depth::DepthRegistration;
 use slamkit_vo::{evaluate, FrameStatus, FrontendKind, TrackingMode, VoConfig, VoMetrics};
 
 fn score(
@@ -41,7 +41,16 @@ fn kitti_06_clip_klt_frame_to_frame() {
     ) else {
         return;
     };
-    let config = VoConfig::stereo_preset(FrontendKind::Klt);
+    let config = Profile::builtin("stereo")
+        .unwrap()
+        .apply(
+            "vo",
+            VoConfig {
+                frontend: FrontendKind::Klt,
+                ..VoConfig::default()
+            },
+        )
+        .unwrap();
     let (m, failed) = score(&dir, DatasetFormat::Kitti, &config).unwrap();
     eprintln!(
         "KITTI 06 KLT: ATE {:.4} m, drift {:.2} %, {failed} failed",
@@ -65,7 +74,16 @@ fn kitti_06_clip_orb_frame_to_frame() {
     ) else {
         return;
     };
-    let config = VoConfig::stereo_preset(FrontendKind::Orb);
+    let config = Profile::builtin("stereo")
+        .unwrap()
+        .apply(
+            "vo",
+            VoConfig {
+                frontend: FrontendKind::Orb,
+                ..VoConfig::default()
+            },
+        )
+        .unwrap();
     let (m, failed) = score(&dir, DatasetFormat::Kitti, &config).unwrap();
     eprintln!(
         "KITTI 06 ORB: ATE {:.4} m, drift {:.2} %, {failed} failed",
@@ -89,10 +107,10 @@ fn seven_scenes_redkitchen_local_map() {
     ) else {
         return;
     };
-    let config = VoConfig {
-        register_depth: Some(DepthRegistration::default()),
-        ..VoConfig::default()
-    };
+    let config = Profile::builtin("kinect-v1")
+        .unwrap()
+        .apply("vo", VoConfig::default())
+        .unwrap();
     assert_eq!(config.mode, TrackingMode::LocalMap);
     let (m, failed) = score(&dir, DatasetFormat::SevenScenes, &config).unwrap();
     eprintln!(

@@ -9,12 +9,8 @@ use slamkit_vision::{
 use crate::depth::{DepthConfig, DepthRegistration};
 use crate::error::VoError;
 use crate::local_map::LocalMapConfig;
-use crate::motion::{MeasurementNoise, MotionConfig};
+use crate::motion::MotionConfig;
 
-/// Disparity noise of the sub-pixel ZNCC stereo matcher \[px\], for the motion weights: on the
-/// KITTI 06 clip 1.0 px gave ATE 0.075 m (KLT) / 0.144 m (ORB), 0.5 px 0.095 / 0.160 m, 0.2 px
-/// 0.188 m (ORB) (BENCHMARKS.md, "Simulated cameras").
-const STEREO_DISPARITY_SIGMA_PX: f64 = 1.0;
 use crate::voxel_map::VoxelMapConfig;
 
 /// Which features are tracked.
@@ -38,6 +34,12 @@ pub enum TrackingMode {
 }
 
 /// Everything visual odometry can be told.
+///
+/// Basic (what a new camera needs; the intrinsics and stereo baseline come with the data):
+/// `frontend`, `depth.min_depth_m` / `depth.max_depth_m` (the depth sensor's usable ranges),
+/// `max_stereo_depth_m`, `register_depth` (an RGB-D camera whose colour is not registered to
+/// depth), `use_clahe` (poorly or unevenly lit scenes). Named profiles hold what one kind of
+/// camera needs (`config/stereo.toml`, `config/kinect-v1.toml`); the rest is advanced.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct VoConfig {
@@ -111,30 +113,6 @@ impl Default for VoConfig {
 }
 
 impl VoConfig {
-    /// The preset for a rectified stereo camera on a car (~1 m between frames, KITTI), measured
-    /// on the KITTI 06 clip (BENCHMARKS.md): frame-to-frame tracking, as averaging world
-    /// positions over the local map's window doubled the ATE there; for ORB, 3000 features on
-    /// the full-resolution level only, as keypoints of the coarser pyramid levels are too
-    /// coarsely placed for metre-scale steps (ATE 0.25 m with 8 levels, 0.14 m with one); for
-    /// KLT, the 500 strongest corners only, as each corner costs a stereo match (40 → 30 ms per
-    /// frame for ATE 0.095 → 0.105 m).
-    pub fn stereo_preset(frontend: FrontendKind) -> Self {
-        let mut config = Self {
-            frontend,
-            mode: TrackingMode::FrameToFrame,
-            ..Self::default()
-        };
-        config.motion.noise = MeasurementNoise::stereo(STEREO_DISPARITY_SIGMA_PX);
-        match frontend {
-            FrontendKind::Orb => {
-                config.orb.n_features = 3000;
-                config.orb.n_levels = 1;
-            }
-            FrontendKind::Klt => config.shi_tomasi.max_corners = 500,
-        }
-        config
-    }
-
     /// Checks the ranges this crate relies on (the kernels check their own).
     ///
     /// # Errors

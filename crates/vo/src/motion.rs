@@ -95,18 +95,6 @@ impl Default for MeasurementNoise {
 }
 
 impl MeasurementNoise {
-    /// The noise of a rectified stereo pair: disparity noise `disparity_sigma_px`, no axial
-    /// term.
-    pub fn stereo(disparity_sigma_px: f64) -> Self {
-        Self {
-            depth_sigma_base_m: 0.0,
-            depth_sigma_quadratic_per_m: 0.0,
-            depth_sigma_offset_m: 0.0,
-            disparity_sigma_px,
-            ..Self::default()
-        }
-    }
-
     /// Standard deviation of a depth `z_m` \[m\] measured by a camera with focal length ×
     /// baseline `bf` \[px·m\].
     pub fn depth_sigma_m(&self, z_m: f64, bf: f64) -> f64 {

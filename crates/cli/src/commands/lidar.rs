@@ -5,16 +5,14 @@
 
 use crate::commands::eval::load_relations;
 use crate::commands::{lidar_drone, lidar_mcl};
-use crate::config_file::config_over;
 use crate::output::{peak_rss_bytes, prepare_out_dir, progress_bar, timings_json, write_report};
+use crate::settings::{settings, with_file};
 use anyhow::Context;
 use serde::de::DeserializeOwned;
 use serde::Serialize;
 use serde_json::json;
 use slamkit_core::{Pose2, Trajectory};
 use slamkit_io::carmen::{CarmenLog, SkipReason};
-use slamkit_lidar::icp_slam::IcpSlamConfig;
-use slamkit_lidar::rbpf::RbpfConfig;
 use slamkit_map::{save_map_yaml, save_png, OccupancyGrid, OccupancyGridConfig};
 use slamkit_slam::lidar::{grid_of_scans, LidarMap};
 use slamkit_slam::{LidarMethod, LidarSlam, LidarSlamConfig};
@@ -56,7 +54,11 @@ pub struct LidarArgs {
     /// Also write the map to this `.skmap` file (the output folder always gets map.skmap).
     #[arg(long)]
     pub save_map: Option<PathBuf>,
-    /// TOML file with configuration overrides: fields of the method's config for a new map
+    /// Named profile of the robot (or a profile file `X.toml`): its `[lidar]` settings (the
+    /// session's), `[drone]` with `--ranges`, `[mcl]` with `--localize MAP.yaml`.
+    #[arg(long)]
+    pub profile: Option<String>,
+    /// TOML file with settings laid over the profile's: fields of the method's config for a new map
     /// (ICP-SLAM's or the particle filter's), of the session's with `--continue` and `--localize
     /// MAP.skmap` (`[icp]`, `[global_search]`, `[localise]`, ...), of MCL's with `--localize
     /// MAP.yaml`.
@@ -193,20 +195,25 @@ pub(crate) fn is_skmap(path: &Path) -> bool {
 /// and over the whole session's ([`LidarSlamConfig`]: `[icp]`, `[global_search]`,
 /// `[localise]`, ...) in a saved map.
 fn session_config(args: &LidarArgs) -> anyhow::Result<LidarSlamConfig> {
+    let mut config = settings(
+        LidarSlamConfig::default(),
+        "lidar",
+        args.profile.as_deref(),
+        None,
+    )?;
     if args.localize.is_some() || args.continue_map.is_some() {
-        return load_config::<LidarSlamConfig>(args.config.as_deref());
+        return with_file(config, args.config.as_deref());
     }
-    let mut config = LidarSlamConfig::default();
     match args.method {
         Method::Rbpf => {
             config.method = LidarMethod::Rbpf;
-            config.rbpf = load_config::<RbpfConfig>(args.config.as_deref())?;
+            config.rbpf = with_file(config.rbpf, args.config.as_deref())?;
             config.rbpf.particles = args.particles;
             if let Some(seed) = args.seed {
                 config.rbpf.seed = seed;
             }
         }
-        _ => config.icp = load_config::<IcpSlamConfig>(args.config.as_deref())?,
+        _ => config.icp = with_file(config.icp, args.config.as_deref())?,
     }
     Ok(config)
 }
@@ -276,11 +283,17 @@ fn skip_reason_key(reason: &SkipReason) -> &'static str {
     }
 }
 
-/// The method's configuration: its defaults with the TOML file at `path` laid over them.
+/// A method's settings: its defaults, the profile's `[section]`, the `--config` file.
 pub(crate) fn load_config<C: Serialize + DeserializeOwned + Default>(
-    path: Option<&Path>,
+    args: &LidarArgs,
+    section: &str,
 ) -> anyhow::Result<C> {
-    config_over(C::default(), path)
+    settings(
+        C::default(),
+        section,
+        args.profile.as_deref(),
+        args.config.as_deref(),
+    )
 }
 
 /// The explicit `--relations`, else `<stem>.relations` beside the log (`intel.fromrosbag.clf.gz`

@@ -26,7 +26,7 @@ use std::time::Instant;
 /// Runs the drone session on the log and the CSV files of `args` (`ranges` is `--ranges`).
 pub fn run(args: &LidarArgs, ranges: &Path) -> anyhow::Result<()> {
     let started = Instant::now();
-    let mut config: DroneSlamConfig = load_config(args.config.as_deref())?;
+    let mut config: DroneSlamConfig = load_config(args, "drone")?;
     if args.method == Method::Rbpf && config.particle_filter.is_none() {
         config.particle_filter = Some(RbpfConfig {
             particles: args.particles,

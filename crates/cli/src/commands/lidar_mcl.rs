@@ -15,7 +15,7 @@ use std::time::Instant;
 /// Runs Monte Carlo localisation in the map `--localize` names.
 pub fn run_localization(args: &LidarArgs, map_path: &Path) -> anyhow::Result<()> {
     let started = Instant::now();
-    let config = load_config::<MclConfig>(args.config.as_deref())?;
+    let config = load_config::<MclConfig>(args, "mcl")?;
     let map = load_map_yaml(map_path)
         .with_context(|| format!("loading the map {}", map_path.display()))?;
     let out = prepare_out_dir(&args.out)?;

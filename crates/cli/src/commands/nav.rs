@@ -12,8 +12,8 @@
 //! `metrics.max_cross_track_m`, ...).
 
 use crate::commands::plan::{parse_xy, save_rgb_png};
-use crate::config_file::config_over;
 use crate::output::{peak_rss_bytes, prepare_out_dir, timings_json, write_report};
+use crate::settings::settings;
 use anyhow::Context;
 use nalgebra::Point2;
 use serde_json::json;
@@ -47,7 +47,11 @@ pub struct NavArgs {
     /// Seed of every random choice.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Loop settings (TOML, the fields of `report.json`'s `config`; missing ones default).
+    /// Named profile of the robot (or a profile file `X.toml`): its `[nav]` settings.
+    #[arg(long)]
+    pub profile: Option<String>,
+    /// Loop settings laid over the profile's (TOML, the fields of `report.json`'s `config`;
+    /// missing ones keep their values).
     #[arg(long)]
     pub config: Option<PathBuf>,
     /// Output folder.
@@ -64,7 +68,12 @@ pub fn run(args: &NavArgs) -> anyhow::Result<()> {
         None => Point2::new(world.nav_goal[0], world.nav_goal[1]),
     };
     let world_name = world.name.clone();
-    let config = config_over(NavLoopConfig::default(), args.config.as_deref())?;
+    let config = settings(
+        NavLoopConfig::default(),
+        "nav",
+        args.profile.as_deref(),
+        args.config.as_deref(),
+    )?;
     let outcome = run_nav_loop(world, goal, args.seed, &config)?;
     let out = prepare_out_dir(&args.out)?;
     write_tum(&out.join("trajectory.tum"), &outcome.estimate)?;

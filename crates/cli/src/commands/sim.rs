@@ -25,8 +25,8 @@
 
 pub mod cameras;
 
-use crate::config_file::config_over;
 use crate::output::{peak_rss_bytes, prepare_out_dir, timings_json, write_report};
+use crate::settings::settings;
 use anyhow::Context;
 use serde_json::json;
 use slamkit_core::observation::{FlowSample, ImuSample, RangePair};
@@ -56,8 +56,11 @@ pub struct SimArgs {
     /// Simulate only the first this many seconds of the run \[s\].
     #[arg(long)]
     pub duration: Option<f64>,
-    /// TOML file with simulation settings (fields of slamkit_sim::SimConfig, such as
-    /// `[rgbd] rate_hz = 15` or `[diff_drive] speed_mps = 0.25`); `--robot` wins over its
+    /// Named profile of the robot (or a profile file `X.toml`): its `[sim]` settings.
+    #[arg(long)]
+    pub profile: Option<String>,
+    /// TOML file with simulation settings laid over the profile's (fields of SimConfig, such
+    /// as `[rgbd] rate_hz = 15` or `[diff_drive] speed_mps = 0.25`); `--robot` wins over its
     /// `robot`.
     #[arg(long)]
     pub config: Option<PathBuf>,
@@ -121,7 +124,12 @@ pub fn run(args: &SimArgs) -> anyhow::Result<()> {
             Robot::Drone => RobotKind::Drone,
             Robot::DiffDrive => RobotKind::DiffDrive,
         },
-        ..config_over(SimConfig::default(), args.config.as_deref())?
+        ..settings(
+            SimConfig::default(),
+            "sim",
+            args.profile.as_deref(),
+            args.config.as_deref(),
+        )?
     };
     let sim = Simulation::new(world, config.clone(), args.seed)?;
     let duration_s = match args.duration {

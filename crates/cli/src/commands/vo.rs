@@ -3,14 +3,14 @@
 //! cloud and report written to the output folder, and with `--save-map` the keyframes as a
 //! `.skmap` file.
 
-use crate::config_file::config_over;
 use crate::output::{peak_rss_bytes, prepare_out_dir, progress_bar, timings_json, write_report};
+use crate::settings::settings;
 use anyhow::Context;
 use serde_json::json;
 use slamkit_io::{Dataset, DatasetFormat as IoFormat};
+use slamkit_slam::profile::layout_profile;
 use slamkit_slam::visual::{self, PointMapping, RunOptions, VisualSlam};
 use slamkit_slam::Session;
-use slamkit_vo::depth::DepthRegistration;
 use slamkit_vo::{evaluate, FrontendKind, VoConfig};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -51,7 +51,13 @@ pub struct VoArgs {
     /// Feature front end.
     #[arg(long, value_enum, default_value = "klt")]
     pub frontend: Frontend,
-    /// TOML file with configuration overrides (fields of slamkit_vo::VoConfig).
+    /// Named profile of the camera (`stereo`, `kinect-v1`; or a profile file `X.toml`):
+    /// its `[vo]` settings. Default: the layout's camera (`stereo` for kitti and euroc,
+    /// `kinect-v1` for 7scenes, none for tum and redwood).
+    #[arg(long)]
+    pub profile: Option<String>,
+    /// TOML file with settings laid over the profile's (the fields of VoConfig, see the
+    /// README's configuration section).
     #[arg(long)]
     pub config: Option<PathBuf>,
     /// Play the dataset at its frame rate and drop the frames the pipeline cannot take.
@@ -130,6 +136,7 @@ pub fn run(args: &VoArgs) -> anyhow::Result<()> {
         "input": args.dataset_dir,
         "format": format!("{format:?}"),
         "realtime": args.realtime,
+        "profile": args.profile.as_deref().or_else(|| layout_profile(io_format(format))),
         "config": config,
         "frames": {
             "frames": result.stats.frames,
@@ -196,33 +203,22 @@ fn detect_format(dir: &Path) -> anyhow::Result<DatasetFormat> {
     anyhow::bail!("cannot tell the layout of {}: pass --format", dir.display())
 }
 
-/// The preset for the layout and front end, with the `--config` file's fields on top.
-/// 7-Scenes colour is not registered to depth (CAMERA_SOURCES.md §7): its preset warps depth
-/// into a Kinect v1 colour camera. Stereo layouts use [`VoConfig::stereo_preset`].
+/// The front end's defaults, the profile's `[vo]` settings (the named one, or the layout's
+/// camera) over them, and the `--config` file's fields on top.
 fn load_config(args: &VoArgs, format: DatasetFormat) -> anyhow::Result<VoConfig> {
-    let frontend = match args.frontend {
-        Frontend::Klt => FrontendKind::Klt,
-        Frontend::Orb => FrontendKind::Orb,
-    };
-    let preset = match format {
-        DatasetFormat::Kitti | DatasetFormat::Euroc => VoConfig::stereo_preset(frontend),
-        DatasetFormat::SevenScenes => VoConfig {
-            frontend,
-            register_depth: Some(DepthRegistration::default()),
-            ..VoConfig::default()
+    let base = VoConfig {
+        frontend: match args.frontend {
+            Frontend::Klt => FrontendKind::Klt,
+            Frontend::Orb => FrontendKind::Orb,
         },
-        DatasetFormat::Tum | DatasetFormat::Redwood => VoConfig {
-            frontend,
-            ..VoConfig::default()
-        },
+        ..VoConfig::default()
     };
-    let Some(path) = &args.config else {
-        return Ok(preset);
-    };
-    let config = config_over(preset, Some(path))?;
-    config
-        .validate()
-        .with_context(|| format!("checking config {}", path.display()))?;
+    let profile = args
+        .profile
+        .as_deref()
+        .or_else(|| layout_profile(io_format(format)));
+    let config = settings(base, "vo", profile, args.config.as_deref())?;
+    config.validate().context("checking the settings")?;
     Ok(config)
 }
 
