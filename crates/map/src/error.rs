@@ -22,6 +22,21 @@ pub enum MapError {
         /// Rotation \[rad\].
         angle_rad: f64,
     },
+    /// The map would span more than a grid may: a pose or odometry jump, most likely.
+    #[error(
+        "the map would span {width_m:.0} m × {height_m:.0} m, more than a grid may \
+         ({limit_tiles} tiles of {tile_m} m; a pose or odometry jump?)"
+    )]
+    TooLarge {
+        /// Width of the bounding box asked for \[m\].
+        width_m: f64,
+        /// Height of the bounding box asked for \[m\].
+        height_m: f64,
+        /// Most tiles a grid may span.
+        limit_tiles: u64,
+        /// Side of a tile \[m\].
+        tile_m: f64,
+    },
     /// A point lies beyond the cell indices a grid can address.
     #[error("point ({x_m}, {y_m}) is outside the addressable map area")]
     OutsideMap {

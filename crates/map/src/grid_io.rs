@@ -194,7 +194,11 @@ pub fn load_map_yaml(yaml_path: &Path) -> Result<OccupancyGrid, MapFileError> {
             x: (i % width) as i32,
             y: (height - 1 - i / width) as i32,
         };
-        grid.set_log_odds(cell, log_odds);
+        grid.set_log_odds(cell, log_odds)
+            .map_err(|source| MapFileError::Map {
+                path: yaml_path.to_path_buf(),
+                source,
+            })?;
     }
     Ok(grid)
 }

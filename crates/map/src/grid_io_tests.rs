@@ -52,8 +52,8 @@ fn pgm_yaml_round_trip() {
 #[test]
 fn pgm_pixels_follow_map_server_convention() {
     let mut grid = OccupancyGrid::new(OccupancyGridConfig::default()).unwrap();
-    grid.set_log_odds(CellIndex { x: 0, y: 0 }, 1.0);
-    grid.set_log_odds(CellIndex { x: 2, y: 1 }, -1.0);
+    grid.set_log_odds(CellIndex { x: 0, y: 0 }, 1.0).unwrap();
+    grid.set_log_odds(CellIndex { x: 2, y: 1 }, -1.0).unwrap();
     let image = trinary_image(&grid);
     assert_eq!((image.width, image.height), (3, 2));
     // Top row is y = 1.

@@ -41,5 +41,5 @@ pub use occupancy_grid::{
     OccupancyGridConfig, TileStats,
 };
 pub use octree::{Octree, OctreeConfig, OctreeInsertStats, OctreeLeaf, OctreeStats};
-pub use tiles::TILE_SIZE;
+pub use tiles::{MAX_INDEX_TILES, TILE_SIZE};
 pub use tri_grid::TriGrid;

@@ -277,7 +277,7 @@ mod tests {
     #[test]
     fn distances_to_a_single_obstacle() {
         let mut grid = OccupancyGrid::new(OccupancyGridConfig::default()).unwrap();
-        grid.set_log_odds(CellIndex { x: 10, y: 20 }, 2.0);
+        grid.set_log_odds(CellIndex { x: 10, y: 20 }, 2.0).unwrap();
         let field = LikelihoodField::new(&grid, &LikelihoodFieldConfig::default()).unwrap();
         let centre = grid.cell_center_m(CellIndex { x: 10, y: 20 });
         assert_eq!(field.distance_m(&centre), 0.0);

@@ -20,7 +20,7 @@
 
 use crate::error::MapError;
 use crate::raycast::bresenham;
-use crate::tiles::{local_index, Tile, TileStore, TILE_BITS, TILE_SIZE};
+use crate::tiles::{local_index, Tile, TileStore, MAX_INDEX_TILES, TILE_BITS, TILE_SIZE};
 use nalgebra::{Point2, Vector2};
 use serde::{Deserialize, Serialize};
 use slamkit_core::{LaserScan, Pose2};
@@ -198,6 +198,17 @@ pub fn probability_from_log_odds(log_odds: f32) -> f64 {
     1.0 - 1.0 / (1.0 + f64::from(log_odds).exp())
 }
 
+/// The error for a bounding box of `[w, h]` tiles of cells of `resolution_m`.
+fn too_large([w, h]: [u64; 2], resolution_m: f64) -> MapError {
+    let tile_m = TILE_SIZE as f64 * resolution_m;
+    MapError::TooLarge {
+        width_m: w as f64 * tile_m,
+        height_m: h as f64 * tile_m,
+        limit_tiles: MAX_INDEX_TILES,
+        tile_m,
+    }
+}
+
 /// A growable 2D log-odds occupancy grid; see the module documentation.
 #[derive(Debug)]
 pub struct OccupancyGrid {
@@ -336,13 +347,21 @@ impl OccupancyGrid {
 
     /// Sets the log-odds of `cell`, clamped to the grid's limits (NaN becomes unknown), growing
     /// the grid when needed.
-    pub fn set_log_odds(&mut self, cell: CellIndex, log_odds: f32) {
+    ///
+    /// # Errors
+    /// [`MapError::TooLarge`] when the grid would span more than [`MAX_INDEX_TILES`] tiles.
+    pub fn set_log_odds(&mut self, cell: CellIndex, log_odds: f32) -> Result<(), MapError> {
         let value = if log_odds.is_nan() {
             0.0
         } else {
             log_odds.clamp(self.l_min, self.l_max)
         };
-        *self.store.cell_mut(cell.x, cell.y) = value;
+        let resolution_m = self.config.resolution_m;
+        *self
+            .store
+            .cell_mut(cell.x, cell.y)
+            .map_err(|tiles| too_large(tiles, resolution_m))? = value;
+        Ok(())
     }
 
     /// Smallest rectangle holding every known (non-zero) cell; `None` for an empty grid.
@@ -398,7 +417,10 @@ impl OccupancyGrid {
         let stats = self.beam_end_cells(scan, world_from_laser, &mut scratch.rays);
         let window = MarkWindow::around(origin, &scratch.rays);
         window.mark_rays(origin, &mut scratch);
-        self.store.cover_tiles(window.min_tile(), window.max_tile());
+        if let Err(tiles) = self.store.cover_tiles(window.min_tile(), window.max_tile()) {
+            self.scratch = scratch;
+            return Err(too_large(tiles, self.config.resolution_m));
+        }
         self.apply_marks(&window, &scratch.marks);
         self.scratch = scratch;
         Ok(stats)

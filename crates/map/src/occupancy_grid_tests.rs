@@ -310,3 +310,31 @@ fn invalid_configs_are_rejected() {
         ));
     }
 }
+
+/// One odometry jump in a real log (x = 1e6 m) asked a grid for a 5 TB tile index; the grid
+/// refuses a box beyond `MAX_INDEX_TILES`, says how large, and keeps what it had.
+#[test]
+fn a_jump_beyond_the_largest_grid_is_refused_and_loses_nothing() {
+    let mut g = grid();
+    g.insert_scan(&scan(vec![1.0, 1.0, 1.0, 1.0]), &at_cell_centre())
+        .unwrap();
+    let known = g.known_bounds();
+    let jump = Pose2::new(Vector2::new(1e6, 1e6), 0.0);
+    let err = g
+        .insert_scan(&scan(vec![1.0, 1.0, 1.0, 1.0]), &jump)
+        .unwrap_err();
+    let MapError::TooLarge { width_m, .. } = err else {
+        panic!("{err}");
+    };
+    assert!(width_m >= 1e6, "{width_m}");
+    assert!(err.to_string().contains("jump"), "{err}");
+    assert_eq!(g.known_bounds(), known);
+    assert!(g.tile_stats().bytes < 1 << 20, "{:?}", g.tile_stats());
+    // 6 km away at 5 cm still fits: a very large building, not a jump
+    let far = Pose2::new(Vector2::new(6000.0, 0.0), 0.0);
+    g.insert_scan(&scan(vec![1.0, 1.0, 1.0, 1.0]), &far)
+        .unwrap();
+    let far_cell = cell(-1000, -1000);
+    assert!(g.set_log_odds(far_cell, 1.0).is_ok());
+    assert!(g.set_log_odds(cell(0, 200_000), 1.0).is_err());
+}

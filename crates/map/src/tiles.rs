@@ -19,6 +19,9 @@ pub const TILE_SIZE: usize = 1 << TILE_BITS;
 pub(crate) const TILE_MASK: i32 = TILE_SIZE as i32 - 1;
 /// Cells per tile.
 pub(crate) const TILE_CELLS: usize = TILE_SIZE * TILE_SIZE;
+/// Most tiles a grid's bounding box may span: 2048 × 2048 tiles, 6.5 km square at 5 cm cells,
+/// whose index alone takes 32 MB. No building needs more; a pose that asks for more is a jump.
+pub const MAX_INDEX_TILES: u64 = 1 << 22;
 
 /// One tile of cell values, row-major (`cells[y * TILE_SIZE + x]`).
 #[derive(Clone)]
@@ -92,12 +95,34 @@ impl TileStore {
 
     /// Grows the index so that it covers tiles `min..=max`, keeping a margin of half the current
     /// size on each side that grows so repeated growth is amortised.
-    pub(crate) fn cover_tiles(&mut self, min: [i32; 2], max: [i32; 2]) {
+    ///
+    /// The index is dense over the tiles' bounding box, so one far point (a pose or odometry
+    /// jump) would ask for memory without bound: beyond [`MAX_INDEX_TILES`] the margin is
+    /// dropped, and a box that does not fit even then is refused with its size in tiles.
+    pub(crate) fn cover_tiles(&mut self, min: [i32; 2], max: [i32; 2]) -> Result<(), [u64; 2]> {
         if self.tile_index(min[0], min[1]).is_some() && self.tile_index(max[0], max[1]).is_some() {
-            return;
+            return Ok(());
         }
-        let (x0, x1) = grown_span(self.x0, self.width, min[0], max[0], self.tiles.is_empty());
-        let (y0, y1) = grown_span(self.y0, self.height, min[1], max[1], self.tiles.is_empty());
+        let empty = self.tiles.is_empty();
+        let (mut x0, mut x1) = grown_span(self.x0, self.width, min[0], max[0], empty);
+        let (mut y0, mut y1) = grown_span(self.y0, self.height, min[1], max[1], empty);
+        let span = |lo: i32, hi: i32| (i64::from(hi) - i64::from(lo) + 1) as u64;
+        if span(x0, x1) * span(y0, y1) > MAX_INDEX_TILES {
+            // no margin: the union of what is covered and what is asked for
+            let old_hi = |t0: i32, n: usize| if empty { i32::MIN } else { t0 + n as i32 - 1 };
+            let old_lo = |t0: i32| if empty { i32::MAX } else { t0 };
+            (x0, x1) = (
+                min[0].min(old_lo(self.x0)),
+                max[0].max(old_hi(self.x0, self.width)),
+            );
+            (y0, y1) = (
+                min[1].min(old_lo(self.y0)),
+                max[1].max(old_hi(self.y0, self.height)),
+            );
+            if span(x0, x1) * span(y0, y1) > MAX_INDEX_TILES {
+                return Err([span(x0, x1), span(y0, y1)]);
+            }
+        }
         let (width, height) = ((x1 - x0 + 1) as usize, (y1 - y0 + 1) as usize);
         let mut tiles = vec![None; width * height];
         for (i, tile) in std::mem::take(&mut self.tiles).into_iter().enumerate() {
@@ -112,6 +137,7 @@ impl TileStore {
             height,
             tiles,
         };
+        Ok(())
     }
 
     /// Writable tile at flat index `index` (from [`Self::tile_index`]), allocating it or copying
@@ -121,12 +147,13 @@ impl TileStore {
         Arc::make_mut(self.tiles[index].get_or_insert_with(Tile::new))
     }
 
-    /// Writable cell `(cx, cy)`, growing the index when needed.
-    pub(crate) fn cell_mut(&mut self, cx: i32, cy: i32) -> &mut f32 {
+    /// Writable cell `(cx, cy)`, growing the index when needed; `Err` as
+    /// [`Self::cover_tiles`].
+    pub(crate) fn cell_mut(&mut self, cx: i32, cy: i32) -> Result<&mut f32, [u64; 2]> {
         let (tx, ty) = (cx >> TILE_BITS, cy >> TILE_BITS);
-        self.cover_tiles([tx, ty], [tx, ty]);
+        self.cover_tiles([tx, ty], [tx, ty])?;
         let index = self.tile_index(tx, ty).unwrap_or_default();
-        &mut self.tile_mut(index).cells[local_index(cx, cy)]
+        Ok(&mut self.tile_mut(index).cells[local_index(cx, cy)])
     }
 
     /// Allocated tiles with the cell coordinates of their lower-left cell.
@@ -171,9 +198,9 @@ mod tests {
     fn growth_keeps_values_and_negative_cells_work() {
         let mut store = TileStore::default();
         assert_eq!(store.get(0, 0), None);
-        *store.cell_mut(3, -5) = 1.5;
-        *store.cell_mut(-700, 900) = -2.0;
-        *store.cell_mut(10_000, -10_000) = 0.25;
+        *store.cell_mut(3, -5).unwrap() = 1.5;
+        *store.cell_mut(-700, 900).unwrap() = -2.0;
+        *store.cell_mut(10_000, -10_000).unwrap() = 0.25;
         assert_eq!(store.get(3, -5), Some(1.5));
         assert_eq!(store.get(-700, 900), Some(-2.0));
         assert_eq!(store.get(10_000, -10_000), Some(0.25));
@@ -184,24 +211,24 @@ mod tests {
     #[test]
     fn rows_within_one_tile() {
         let mut store = TileStore::default();
-        *store.cell_mut(-3, 70) = 1.0;
-        *store.cell_mut(-1, 70) = 2.0;
+        *store.cell_mut(-3, 70).unwrap() = 1.0;
+        *store.cell_mut(-1, 70).unwrap() = 2.0;
         assert_eq!(store.row(-4, 70, 4), Some(&[0.0, 1.0, 0.0, 2.0][..]));
         // Crossing a tile border or outside the index: no slice.
         assert_eq!(store.row(-2, 70, 4), None);
         assert_eq!(store.row(-4, 10_000, 4), None);
         // An unallocated tile inside the index reads as zeros.
-        *store.cell_mut(200, 70) = 1.0;
+        *store.cell_mut(200, 70).unwrap() = 1.0;
         assert_eq!(store.row(64, 70, 3), Some(&[0.0; 3][..]));
     }
 
     #[test]
     fn clones_share_tiles_until_written() {
         let mut a = TileStore::default();
-        *a.cell_mut(0, 0) = 1.0;
-        *a.cell_mut(200, 0) = 1.0;
+        *a.cell_mut(0, 0).unwrap() = 1.0;
+        *a.cell_mut(200, 0).unwrap() = 1.0;
         let mut b = a.clone();
-        *b.cell_mut(1, 1) = 2.0;
+        *b.cell_mut(1, 1).unwrap() = 2.0;
         let shared = a
             .tiles()
             .zip(b.tiles())
@@ -219,7 +246,7 @@ mod tests {
         let mut reallocations = 0;
         for i in 0..1000 {
             let before = store.width;
-            *store.cell_mut(i * TILE_SIZE as i32, 0) = 1.0;
+            *store.cell_mut(i * TILE_SIZE as i32, 0).unwrap() = 1.0;
             reallocations += usize::from(store.width != before);
         }
         assert!(reallocations < 20, "{reallocations} reallocations");

@@ -13,6 +13,7 @@
 //! * [`drone`]: [`DroneSlam`], layered 2D lidar SLAM for a drone with up/down range finders,
 //!   attitude and gyro, and optionally optical flow and a particle filter.
 //! * [`map_file`]: the `.skmap` container: header, sections, checksum, atomic writes.
+//! * [`odometry_gate`]: odometry jumps a robot cannot have made, taken as no motion.
 //! * [`profile`]: named profiles (`config/*.toml`) and configuration files laid over a
 //!   session's settings.
 //! * [`lidar`]: [`LidarSlam`], 2D lidar SLAM (ICP-SLAM or a particle filter) and localisation in
@@ -30,6 +31,7 @@ mod error;
 pub mod ground_robot;
 pub mod lidar;
 pub mod map_file;
+pub mod odometry_gate;
 pub mod profile;
 pub mod session;
 pub mod visual;

@@ -20,6 +20,7 @@
 pub mod map;
 
 use crate::map_file::{MapFile, MapFileError};
+use crate::odometry_gate::{OdometryGate, OdometryGateConfig};
 use crate::session::{MapChange, Session, TrackingStatus, Update};
 use crate::SlamError;
 pub use map::{LidarMap, MapKeyframe, MapScan};
@@ -74,6 +75,9 @@ pub struct LidarSlamConfig {
     pub localise: LocaliseOptions,
     /// Localisation: after this many scans in a row without a match the robot is lost.
     pub lost_after_failures: usize,
+    /// Odometry jumps the robot cannot have made are taken as no motion (basic: the robot's
+    /// top speed).
+    pub odometry_gate: OdometryGateConfig,
 }
 
 impl Default for LidarSlamConfig {
@@ -88,6 +92,7 @@ impl Default for LidarSlamConfig {
             search_every_scans: 20,
             localise: LocaliseOptions::default(),
             lost_after_failures: 10,
+            odometry_gate: OdometryGateConfig::default(),
         }
     }
 }
@@ -109,6 +114,9 @@ pub struct LidarSessionStats {
     pub losses: usize,
     /// Index of the scan of the first fix.
     pub first_fix_scan: Option<usize>,
+    /// Odometry readings the robot cannot have driven, taken as no motion
+    /// ([`crate::odometry_gate`]).
+    pub odometry_rejected: usize,
 }
 
 /// Scan counts of a session.
@@ -163,6 +171,7 @@ pub struct LidarSlam {
     online: Vec<(f64, Option<Pose2>)>,
     /// Each scan's odometry reading, when it has one.
     odometry: Vec<Option<Pose2>>,
+    gate: OdometryGate,
     stats: LidarSessionStats,
     timings: StageTimings,
 }
@@ -208,6 +217,7 @@ impl LidarSlam {
     /// A session building a new map, the robot starting at `initial_pose` (the map frame's
     /// origin is where the robot starts when this is the identity).
     pub fn new(config: LidarSlamConfig, initial_pose: Pose2) -> Result<Self, SlamError> {
+        config.odometry_gate.validate().map_err(SlamError::Config)?;
         let mode = match config.method {
             LidarMethod::Icp => Mode::Icp {
                 slam: Box::new(IcpSlam::starting_at(config.icp.clone(), initial_pose)?),
@@ -236,6 +246,7 @@ impl LidarSlam {
     }
 
     fn in_map(config: LidarSlamConfig, map: LidarMap, extend: bool) -> Result<Self, SlamError> {
+        config.odometry_gate.validate().map_err(SlamError::Config)?;
         if map.keyframes.is_empty() {
             return Err(SlamError::Map("the map holds no keyframe".into()));
         }
@@ -255,6 +266,7 @@ impl LidarSlam {
 
     fn with_mode(config: LidarSlamConfig, mode: Mode) -> Self {
         Self {
+            gate: OdometryGate::new(config.odometry_gate.clone()),
             config,
             mode,
             online: Vec::new(),
@@ -265,10 +277,14 @@ impl LidarSlam {
     }
 
     /// Takes one scan; returns the update it gives.
-    pub fn push_scan(&mut self, scan: LaserScan) -> Update {
+    pub fn push_scan(&mut self, mut scan: LaserScan) -> Update {
         let index = self.stats.scans;
         self.stats.scans += 1;
-        self.odometry.push(scan.odometry.filter(is_finite_pose));
+        scan.odometry = self
+            .gate
+            .filter(scan.timestamp, scan.odometry.filter(is_finite_pose));
+        self.stats.odometry_rejected = self.gate.rejected();
+        self.odometry.push(scan.odometry);
         let timestamp = scan.timestamp;
         let (pose, status, map) = match &mut self.mode {
             Mode::Icp { slam, scans } => {

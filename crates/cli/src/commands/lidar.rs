@@ -176,6 +176,13 @@ pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
     });
     write_report(&out, &report)?;
     print_summary(&out, &report);
+    let jumps = session.stats().odometry_rejected;
+    if jumps > 0 {
+        eprintln!(
+            "warning: {jumps} odometry readings jumped farther than the robot can move \
+             (odometry_gate in the settings); taken as no motion"
+        );
+    }
     if let Some(scan) = session.stats().first_fix_scan {
         println!("found in the map at scan {scan}");
     } else if args.localize.is_some() || args.continue_map.is_some() {
