@@ -54,6 +54,10 @@ fn main() -> ExitCode {
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
+        Err(err) if err.is::<output::Unsuccessful>() => {
+            eprintln!("unsuccessful: {err}");
+            ExitCode::from(output::UNSUCCESSFUL_EXIT)
+        }
         Err(err) => {
             // One line: the error and its causes, outermost first; never a backtrace.
             eprintln!("error: {}", output::error_chain(&err));

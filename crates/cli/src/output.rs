@@ -13,6 +13,24 @@ pub fn error_chain(err: &anyhow::Error) -> String {
         .join(": ")
 }
 
+/// A run that finished and wrote its outputs but did not do what it was asked: the goal not
+/// reached, localisation that never found the robot. `main` exits with
+/// [`UNSUCCESSFUL_EXIT`] for it, so a script can tell it from an error (1) or bad arguments
+/// (2) without reading the report.
+#[derive(Debug)]
+pub struct Unsuccessful(pub String);
+
+impl std::fmt::Display for Unsuccessful {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for Unsuccessful {}
+
+/// Exit code of an [`Unsuccessful`] run.
+pub const UNSUCCESSFUL_EXIT: u8 = 3;
+
 /// Creates the output folder (and its parents) and returns its path.
 pub fn prepare_out_dir(dir: &Path) -> anyhow::Result<PathBuf> {
     std::fs::create_dir_all(dir)

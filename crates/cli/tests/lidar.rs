@@ -129,3 +129,63 @@ fn a_log_without_readable_scans_is_an_error_not_a_panic() {
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert!(stderr.contains("garbage.clf"), "names the file: {stderr}");
 }
+
+/// A dead sensor (issue 25 item 4: every range negative gave 0 scans processed, identity
+/// poses and a relations error): an error before the run, naming the log and the limits, and
+/// no trajectory written.
+#[test]
+fn a_log_whose_every_range_is_negative_is_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("dead.clf");
+    let ranges = vec!["-1.0".to_string(); 181];
+    let text: String = (0..30)
+        .map(|k| flaser(&ranges, 0.05 * f64::from(k), 100.0 + 0.1 * f64::from(k)))
+        .collect();
+    std::fs::write(&log, text).unwrap();
+    let out = dir.path().join("out");
+    let run = run_lidar(&log, &out);
+    assert_eq!(run.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        stderr.contains("no usable scan") && stderr.contains("dead.clf") && stderr.contains("30"),
+        "{stderr}"
+    );
+    assert!(!out.join("trajectory.tum").exists());
+}
+
+/// Localisation that never finds the robot finished, wrote its outputs, and says so with exit
+/// code 3 (issue 25 item 11): here the map is of a room the log never sees.
+#[test]
+fn localisation_that_never_converges_exits_with_3() {
+    let dir = tempfile::tempdir().unwrap();
+    let room = dir.path().join("room.clf");
+    std::fs::write(&room, corrupted_log()).unwrap();
+    let mapped = dir.path().join("mapped");
+    assert!(run_lidar(&room, &mapped).status.success());
+    // a corridor 1 m wide and endless: no pose in the room matches it
+    let corridor = dir.path().join("corridor.clf");
+    let ranges: Vec<String> = (0..181)
+        .map(|i| {
+            let angle = (i as f64 - 90.0).to_radians();
+            format!("{:.4}", (0.5 / angle.sin().abs()).min(30.0))
+        })
+        .collect();
+    let text: String = (0..40)
+        .map(|k| flaser(&ranges, 0.05 * f64::from(k), 100.0 + 0.1 * f64::from(k)))
+        .collect();
+    std::fs::write(&corridor, text).unwrap();
+    let out = dir.path().join("loc");
+    let run = Command::new(env!("CARGO_BIN_EXE_slamkit"))
+        .arg("lidar")
+        .arg(&corridor)
+        .arg("--localize")
+        .arg(mapped.join("map.skmap"))
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(3), "{stderr}");
+    assert!(stderr.contains("never found"), "{stderr}");
+    assert!(out.join("report.json").exists());
+}

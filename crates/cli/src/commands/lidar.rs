@@ -5,7 +5,9 @@
 
 use crate::commands::eval::load_relations;
 use crate::commands::{lidar_drone, lidar_mcl};
-use crate::output::{peak_rss_bytes, prepare_out_dir, progress_bar, timings_json, write_report};
+use crate::output::{
+    peak_rss_bytes, prepare_out_dir, progress_bar, timings_json, write_report, Unsuccessful,
+};
 use crate::settings::{settings, with_file};
 use anyhow::Context;
 use serde::de::DeserializeOwned;
@@ -13,6 +15,7 @@ use serde::Serialize;
 use serde_json::json;
 use slamkit_core::{Pose2, Trajectory};
 use slamkit_io::carmen::{CarmenLog, SkipReason};
+use slamkit_lidar::icp_slam::IcpSlamConfig;
 use slamkit_map::{save_map_yaml, save_png, OccupancyGrid, OccupancyGridConfig};
 use slamkit_slam::lidar::{grid_of_scans, LidarMap};
 use slamkit_slam::{LidarMethod, LidarSlam, LidarSlamConfig};
@@ -100,6 +103,7 @@ pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
     let config = session_config(args)?;
     let out = prepare_out_dir(&args.out)?;
     let log = read_log(&args.log)?;
+    ensure_usable(args, &log, &config.icp)?;
     let load = |path: &Path| -> anyhow::Result<LidarMap> {
         let started = Instant::now();
         let (map, _) = LidarMap::load(path)?;
@@ -130,6 +134,7 @@ pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
     }
     let session_seconds = session_started.elapsed().as_secs_f64();
     bar.finish_and_clear();
+    let counts = session.frame_counts();
 
     let trajectory = session.trajectory();
     slamkit_io::trajectory_file::write_tum(&out.join("trajectory.tum"), &trajectory)?;
@@ -148,7 +153,6 @@ pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
             .with_context(|| format!("saving the map to {}", path.display()))?;
     }
 
-    let counts = session.frame_counts();
     let report = json!({
         "input": args.log,
         "method": match (&args.localize, &args.continue_map) {
@@ -186,8 +190,32 @@ pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
     if let Some(scan) = session.stats().first_fix_scan {
         println!("found in the map at scan {scan}");
     } else if args.localize.is_some() || args.continue_map.is_some() {
-        println!("the robot was never found in the map");
+        return Err(Unsuccessful("the robot was never found in the map".into()).into());
     }
+    Ok(())
+}
+
+/// Refuses a log none of whose scans has enough beams in range to be matched (every range
+/// negative, a dead sensor), before a run that would write identity poses and score them.
+pub(crate) fn ensure_usable(
+    args: &LidarArgs,
+    log: &CarmenLog,
+    config: &IcpSlamConfig,
+) -> anyhow::Result<()> {
+    let usable = log
+        .scans
+        .iter()
+        .any(|scan| config.scan_points(scan).len() >= config.min_scan_points);
+    anyhow::ensure!(
+        usable,
+        "no usable scan in {}: none of its {} scans has {} beams within {} to {} m \
+         (icp.min_scan_points, icp.min_range_m, icp.max_range_m)",
+        args.log.display(),
+        log.scans.len(),
+        config.min_scan_points,
+        config.min_range_m,
+        config.max_range_m,
+    );
     Ok(())
 }
 

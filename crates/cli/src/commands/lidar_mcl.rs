@@ -3,10 +3,15 @@
 //! log's benchmark `.relations` file is known, the relations metric, through the same helpers
 //! as the session paths.
 
-use crate::commands::lidar::{load_config, print_summary, read_log, relations_metrics, LidarArgs};
-use crate::output::{peak_rss_bytes, prepare_out_dir, progress_bar, timings_json, write_report};
+use crate::commands::lidar::{
+    ensure_usable, load_config, print_summary, read_log, relations_metrics, LidarArgs,
+};
+use crate::output::{
+    peak_rss_bytes, prepare_out_dir, progress_bar, timings_json, write_report, Unsuccessful,
+};
 use anyhow::Context;
 use serde_json::json;
+use slamkit_lidar::icp_slam::IcpSlamConfig;
 use slamkit_lidar::mcl::{run_mcl, MclConfig};
 use slamkit_map::{load_map_yaml, save_map_yaml, save_png};
 use std::path::Path;
@@ -20,6 +25,7 @@ pub fn run_localization(args: &LidarArgs, map_path: &Path) -> anyhow::Result<()>
         .with_context(|| format!("loading the map {}", map_path.display()))?;
     let out = prepare_out_dir(&args.out)?;
     let log = read_log(&args.log)?;
+    ensure_usable(args, &log, &IcpSlamConfig::default())?;
     let bar = progress_bar(log.scans.len() as u64, "mcl");
     let result = run_mcl(&log.scans, &map, &config, |_| bar.inc(1))
         .with_context(|| format!("localising in {}", map_path.display()))?;
@@ -50,10 +56,14 @@ pub fn run_localization(args: &LidarArgs, map_path: &Path) -> anyhow::Result<()>
     });
     write_report(&out, &report)?;
     print_summary(&out, &report);
-    if let Some(scan) = s.first_converged_scan {
-        println!("converged at scan {scan}");
-    } else {
-        println!("the particles never gathered within the convergence radius");
+    match s.first_converged_scan {
+        Some(scan) => println!("converged at scan {scan}"),
+        None => {
+            return Err(Unsuccessful(
+                "the particles never gathered within the convergence radius".into(),
+            )
+            .into())
+        }
     }
     Ok(())
 }

@@ -12,7 +12,7 @@
 //! `metrics.max_cross_track_m`, ...).
 
 use crate::commands::plan::{parse_xy, save_rgb_png};
-use crate::output::{peak_rss_bytes, prepare_out_dir, timings_json, write_report};
+use crate::output::{peak_rss_bytes, prepare_out_dir, timings_json, write_report, Unsuccessful};
 use crate::settings::settings;
 use anyhow::Context;
 use nalgebra::Point2;
@@ -120,6 +120,13 @@ pub fn run(args: &NavArgs) -> anyhow::Result<()> {
         o.final_distance_m,
         out.display()
     );
+    if !o.reached {
+        return Err(Unsuccessful(format!(
+            "the goal was not reached: {:.2} m from it after {:.1} s",
+            o.final_distance_m, o.time_s
+        ))
+        .into());
+    }
     Ok(())
 }
 
