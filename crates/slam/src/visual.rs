@@ -31,9 +31,10 @@ pub use prepare::{FramePreparer, PreparedObservation};
 
 use cpu_time::ThreadTime;
 use slamkit_core::{Observation, Pose3, StageTimings};
-use slamkit_io::Dataset;
+use slamkit_io::{Dataset, DatasetFormat};
+use slamkit_vo::depth::DepthRegistration;
 use slamkit_vo::frame::Rig;
-use slamkit_vo::{FrameStatus, Odometry, TrackingMode, VoConfig, VoxelMap};
+use slamkit_vo::{FrameStatus, FrontendKind, Odometry, TrackingMode, VoConfig, VoxelMap};
 use std::path::Path;
 
 use crate::map_file;
@@ -353,6 +354,35 @@ impl Session for VisualSlam {
             .map_err(map_error)?
             .save(path)
             .map_err(map_error)
+    }
+}
+
+/// The settings to start from for a dataset `format` and `frontend`: the defaults for
+/// registered RGB-D ([`VoConfig::default`]), [`VoConfig::stereo_preset`] for stereo layouts,
+/// and for 7-Scenes, whose colour is not registered to depth (CAMERA_SOURCES.md §7), depth
+/// warped into a Kinect v1 colour camera.
+///
+/// ```
+/// use slamkit_io::DatasetFormat;
+/// use slamkit_slam::visual::preset;
+/// use slamkit_vo::FrontendKind;
+///
+/// assert!(preset(DatasetFormat::SevenScenes, FrontendKind::Orb).register_depth.is_some());
+/// assert!(preset(DatasetFormat::Tum, FrontendKind::Orb).register_depth.is_none());
+/// assert_eq!(preset(DatasetFormat::Kitti, FrontendKind::Klt).frontend, FrontendKind::Klt);
+/// ```
+pub fn preset(format: DatasetFormat, frontend: FrontendKind) -> VoConfig {
+    match format {
+        DatasetFormat::Kitti | DatasetFormat::Euroc => VoConfig::stereo_preset(frontend),
+        DatasetFormat::SevenScenes => VoConfig {
+            frontend,
+            register_depth: Some(DepthRegistration::default()),
+            ..VoConfig::default()
+        },
+        DatasetFormat::Tum | DatasetFormat::Redwood => VoConfig {
+            frontend,
+            ..VoConfig::default()
+        },
     }
 }
 

@@ -1,36 +1,21 @@
 //! `slamkit demo`: the whole system on a simulated drone, with no download.
 //!
-//! Simulates a flight through a built-in world (seeded, so every run gives the same data) and
+//! Simulates a flight through a built-in world (seeded, so every run gives the same data),
 //! pushes its readings into the drone's session ([`slamkit_slam::DroneSlam`], the same a user
-//! runs on a recording with `slamkit lidar LOG --ranges --imu --flow`), scored by
-//! [`slamkit_slam::drone::simulated`]: layered ICP-SLAM
-//! ([`slamkit_lidar::layers`]: one 2D map per 5 cm height layer,
-//! the layer tracked by the up and down range finders, scans ignored while the drone tilts,
-//! each scan predicted from the drone's recent velocity, its tilt, its yaw-rate gyro (heading
-//! and gyro bias in a Kalman filter that the scans correct) and its downward optical-flow
-//! velocity sensor ([`slamkit_sim::flow`]), matches kept only along the directions the scan
-//! constrains, each fixed scan matched again to the older maps of the layers within 0.2 m),
-//! and particle-filter SLAM ([`slamkit_slam::drone::particle_filter`]) on the
-//! same scans in a single 2D map, its height taken from the layered tracker. Neither uses the
-//! scans' rotate–translate–rotate odometry: its per-scan yaw error exceeds 0.19 rad on 5 % of
-//! the `large` flight's scans. The particle filter takes its motion from the layered
-//! matcher's pose increments, as MRPT's ICP-based RBPF takes scan-matching odometry, and keeps
-//! its own maps and scan matching (`large`, seeds 1–4: PF mean error 0.20–2.2 m with the
-//! drone's odometry, 0.08–0.84 m with scan-to-scan ICP, 0.04–0.08 m with the layered
-//! increments). Each estimated 3D position is compared with the simulator's ground truth at the
-//! same time.
+//! runs on a recording with `slamkit lidar LOG --ranges --imu --flow`): layered ICP-SLAM and
+//! particle-filter SLAM on the layered increments, scored against the simulator's truth by
+//! [`slamkit_slam::drone::simulated`] (its docs say how each works), then the kidnapped-drone
+//! layer check ([`slamkit_slam::drone::kidnapped`]) and RGB-D visual odometry on the same
+//! flight seen by the drone's camera ([`slamkit_slam::visual::simulated`]).
 //!
 //! Writes in `--out`: `trajectory.tum`, `groundtruth.tum`, `map.pgm`/`map.yaml`/`map.png` (every
 //! layer's scans in one grid), `maps/layer_NNN.{pgm,yaml,png}` (one grid per height layer),
 //! `cloud.ply` (the merged layer maps), `trajectory_pf.tum` and `map_pf.{pgm,yaml,png}` (the
 //! particle filter's best trajectory and map), `errors_icp.png` and `errors_pf.png` (top view
-//! and error over time), `report.json` (`metrics.{icp,pf}.position_error_mean_m`,
-//! `metrics.{icp,pf}.position_error_max_m`, and `metrics.layer_localisation`: the kidnapped-drone
-//! check of [`slamkit_slam::drone::kidnapped`], the particle-filter layer choice on the layer maps) and
-//! `report.html` (all of it on one page, images embedded). The same flight seen by the
-//! drone's simulated RGB-D camera goes through RGB-D visual odometry
-//! ([`slamkit_slam::visual::simulated`]): `rgbd/` (TUM
-//! RGB-D folder), `trajectory_vo.tum`, `errors_vo.png`, `metrics.vo.ate_rmse_m`.
+//! and error over time), `rgbd/` (the camera's TUM RGB-D folder), `trajectory_vo.tum`,
+//! `errors_vo.png`, `report.json` (`metrics.{icp,pf}.position_error_mean_m`,
+//! `metrics.{icp,pf}.position_error_max_m`, `metrics.vo.ate_rmse_m`,
+//! `metrics.layer_localisation`) and `report.html` (all of it on one page, images embedded).
 
 use crate::commands::drone_files::{write_grids, write_ply, LayerFile};
 use crate::output::{peak_rss_bytes, prepare_out_dir, progress_bar, timings_json, write_report};

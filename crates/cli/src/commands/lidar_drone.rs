@@ -8,9 +8,10 @@
 //! `--method rbpf` `trajectory_pf.tum` and `map_pf.*`, and with `--save-map` the `.skmap`.
 
 use crate::commands::drone_files::{run_session, write_grids, write_ply};
-use crate::commands::lidar::{load_config, print_summary, relations_metrics, LidarArgs, Method};
+use crate::commands::lidar::{
+    load_config, print_summary, read_log, relations_metrics, LidarArgs, Method,
+};
 use crate::output::{peak_rss_bytes, prepare_out_dir, timings_json, write_report};
-use anyhow::Context;
 use serde_json::json;
 use slamkit_core::observation::time_ordered;
 use slamkit_core::Observation;
@@ -34,11 +35,7 @@ pub fn run(args: &LidarArgs, ranges: &Path) -> anyhow::Result<()> {
         });
     }
     let out = prepare_out_dir(&args.out)?;
-    let log = slamkit_io::carmen::read_carmen(&args.log)
-        .with_context(|| format!("reading log {}", args.log.display()))?;
-    if log.scans.is_empty() {
-        anyhow::bail!("{} holds no laser scan", args.log.display());
-    }
+    let log = read_log(&args.log)?;
     let mut observations: Vec<Observation> = read_ranges(ranges)?
         .into_iter()
         .map(Observation::Range)

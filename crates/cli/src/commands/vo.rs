@@ -10,7 +10,6 @@ use serde_json::json;
 use slamkit_io::{Dataset, DatasetFormat as IoFormat};
 use slamkit_slam::visual::{self, PointMapping, RunOptions, VisualSlam};
 use slamkit_slam::Session;
-use slamkit_vo::depth::DepthRegistration;
 use slamkit_vo::{evaluate, FrontendKind, VoConfig};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -170,52 +169,27 @@ fn io_format(f: DatasetFormat) -> IoFormat {
 
 /// Tells the layout from the folder's content.
 fn detect_format(dir: &Path) -> anyhow::Result<DatasetFormat> {
-    let has = |p: &str| dir.join(p).exists();
-    if has("image_0") && has("calib.txt") {
-        return Ok(DatasetFormat::Kitti);
-    }
-    if has("rgb.txt") && has("depth.txt") {
-        return Ok(DatasetFormat::Tum);
-    }
-    if has("cam0") && has("cam1") {
-        return Ok(DatasetFormat::Euroc);
-    }
-    if has("color") && has("depth") {
-        return Ok(DatasetFormat::Redwood);
-    }
-    let seven = std::fs::read_dir(dir)
-        .with_context(|| format!("reading {}", dir.display()))?
-        .filter_map(Result::ok)
-        .any(|e| {
-            e.file_name().to_string_lossy().ends_with(".color.jpg")
-                || e.file_name().to_string_lossy().ends_with(".color.png")
-        });
-    if seven {
-        return Ok(DatasetFormat::SevenScenes);
-    }
-    anyhow::bail!("cannot tell the layout of {}: pass --format", dir.display())
+    let detected = slamkit_io::layout::detect_layout(dir)?;
+    let Some(format) = detected else {
+        anyhow::bail!("cannot tell the layout of {}: pass --format", dir.display())
+    };
+    Ok(match format {
+        IoFormat::Tum => DatasetFormat::Tum,
+        IoFormat::Kitti => DatasetFormat::Kitti,
+        IoFormat::SevenScenes => DatasetFormat::SevenScenes,
+        IoFormat::Redwood => DatasetFormat::Redwood,
+        IoFormat::Euroc => DatasetFormat::Euroc,
+    })
 }
 
-/// The preset for the layout and front end, with the `--config` file's fields on top.
-/// 7-Scenes colour is not registered to depth (CAMERA_SOURCES.md §7): its preset warps depth
-/// into a Kinect v1 colour camera. Stereo layouts use [`VoConfig::stereo_preset`].
+/// The preset for the layout and front end ([`visual::preset`]), with the `--config` file's
+/// fields on top.
 fn load_config(args: &VoArgs, format: DatasetFormat) -> anyhow::Result<VoConfig> {
     let frontend = match args.frontend {
         Frontend::Klt => FrontendKind::Klt,
         Frontend::Orb => FrontendKind::Orb,
     };
-    let preset = match format {
-        DatasetFormat::Kitti | DatasetFormat::Euroc => VoConfig::stereo_preset(frontend),
-        DatasetFormat::SevenScenes => VoConfig {
-            frontend,
-            register_depth: Some(DepthRegistration::default()),
-            ..VoConfig::default()
-        },
-        DatasetFormat::Tum | DatasetFormat::Redwood => VoConfig {
-            frontend,
-            ..VoConfig::default()
-        },
-    };
+    let preset = visual::preset(io_format(format), frontend);
     let Some(path) = &args.config else {
         return Ok(preset);
     };

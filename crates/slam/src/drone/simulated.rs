@@ -3,6 +3,20 @@
 //! recording would, with the demo's particle filter on the layered increments; each estimated
 //! 3D position is then compared with the true one at the same time. Like the simulated closed
 //! loop, only the scoring reads the truth; the session never sees it.
+//!
+//! Layered ICP-SLAM ([`slamkit_lidar::layers`]) keeps one 2D map per 5 cm height layer, the
+//! layer tracked by the up and down range finders, scans ignored while the drone tilts, each
+//! scan predicted from the drone's recent velocity, its tilt, its yaw-rate gyro (heading and
+//! gyro bias in a Kalman filter that the scans correct) and its downward optical-flow velocity
+//! sensor ([`slamkit_sim::flow`]), matches kept only along the directions the scan constrains,
+//! each fixed scan matched again to the older maps of the layers within 0.2 m. Particle-filter
+//! SLAM ([`super::particle_filter`]) runs on the same scans in a single 2D map, its height taken
+//! from the layered tracker. Neither uses the scans' rotate–translate–rotate odometry: its
+//! per-scan yaw error exceeds 0.19 rad on 5 % of the `large` flight's scans. The particle filter
+//! takes its motion from the layered matcher's pose increments, as MRPT's ICP-based RBPF takes
+//! scan-matching odometry, and keeps its own maps and scan matching (`large`, seeds 1–4: PF mean
+//! error 0.20–2.2 m with the drone's odometry, 0.08–0.84 m with scan-to-scan ICP, 0.04–0.08 m
+//! with the layered increments).
 
 use super::particle_filter::drone_pf_config;
 use super::{DroneSlam, DroneSlamConfig};
