@@ -68,26 +68,6 @@ pub fn pixel_of(grid: &TriGrid, point_m: &Point2<f64>) -> Option<(usize, usize)>
     Some((x, grid.height() - 1 - y))
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn path_start_and_goal_are_drawn() {
-        let mut g = TriGrid::new(10, 8, 0.1, Point2::origin(), Occupancy::Free).unwrap();
-        g.set(5, 5, Occupancy::Occupied);
-        let inflated = g.inflated(1);
-        let cells = [(1, 1), (2, 2), (3, 3), (8, 3)];
-        let image = draw_path(&g, &inflated, &cells);
-        assert_eq!(image.get(5, 8 - 1 - 5), Some(&OCCUPIED));
-        assert_eq!(image.get(4, 8 - 1 - 5), Some(&INFLATED));
-        assert_eq!(image.get(3, 8 - 1 - 3), Some(&PATH));
-        let (col, row) = pixel_of(&g, &Point2::new(0.15, 0.15)).unwrap();
-        assert_eq!(image.get(col, row), Some(&[30, 170, 30]));
-        assert_eq!(image.get(9, 0), Some(&FREE));
-    }
-}
-
 /// Colours the pixel of each of `points` (metres) in an image drawn by [`draw_path`] on
 /// `grid`; points outside the grid are left out.
 pub fn mark_points(
@@ -126,4 +106,24 @@ pub fn upscale(image: &RgbImage, k: usize) -> RgbImage {
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn path_start_and_goal_are_drawn() {
+        let mut g = TriGrid::new(10, 8, 0.1, Point2::origin(), Occupancy::Free).unwrap();
+        g.set(5, 5, Occupancy::Occupied);
+        let inflated = g.inflated(1);
+        let cells = [(1, 1), (2, 2), (3, 3), (8, 3)];
+        let image = draw_path(&g, &inflated, &cells);
+        assert_eq!(image.get(5, 8 - 1 - 5), Some(&OCCUPIED));
+        assert_eq!(image.get(4, 8 - 1 - 5), Some(&INFLATED));
+        assert_eq!(image.get(3, 8 - 1 - 3), Some(&PATH));
+        let (col, row) = pixel_of(&g, &Point2::new(0.15, 0.15)).unwrap();
+        assert_eq!(image.get(col, row), Some(&[30, 170, 30]));
+        assert_eq!(image.get(9, 0), Some(&FREE));
+    }
 }

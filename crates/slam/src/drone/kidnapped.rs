@@ -19,12 +19,12 @@ use slamkit_sim::LidarRun;
 use std::collections::BTreeMap;
 
 /// The start scan is the first one after this share of the flight whose true layer has a map.
-const START_FRACTION: f64 = 0.6;
+pub const START_FRACTION: f64 = 0.6;
 /// The position error is also reported after this many scans.
-const EARLY_SCANS: usize = 50;
+pub const EARLY_SCANS: usize = 50;
 /// The best hypothesis counts as converged once its particles' spread after an update is below
 /// this \[m\].
-const CONVERGED_SPREAD_M: f64 = 0.3;
+pub const CONVERGED_SPREAD_M: f64 = 0.3;
 
 /// What the re-localisation found.
 pub struct LayerLocalisation {
