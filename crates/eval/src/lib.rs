@@ -12,14 +12,17 @@
 //! * [`stats`] — [`ErrorStats`]: RMSE, mean, median, std, min, max and count, as evo and numpy
 //!   compute them.
 //! * [`plot`] — top view and error-over-time figures (PNG or SVG).
+//! * [`report_html`] — self-contained HTML report pages, images embedded.
 //!
 //! Poses are `world_from_body` ([`slamkit_core::Pose3`]); errors are in metres and degrees.
-//! Nothing here prints or reads files; the `slamkit eval` command does.
+//! Nothing here prints or reads input files; the `slamkit eval` command does ([`plot`] and
+//! [`report_html`] write the figures and pages they are asked for).
 
 pub mod association;
 pub mod ate;
 pub mod plot;
 pub mod relations;
+pub mod report_html;
 pub mod rpe;
 pub mod stats;
 

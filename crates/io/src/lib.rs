@@ -31,6 +31,7 @@ pub mod image_io;
 pub mod image_writer;
 pub mod kitti;
 pub mod kitti_writer;
+pub mod layout;
 pub mod mrpt_text;
 pub mod ply;
 pub mod redwood;

@@ -68,6 +68,46 @@ pub fn pixel_of(grid: &TriGrid, point_m: &Point2<f64>) -> Option<(usize, usize)>
     Some((x, grid.height() - 1 - y))
 }
 
+/// Colours the pixel of each of `points` (metres) in an image drawn by [`draw_path`] on
+/// `grid`; points outside the grid are left out.
+pub fn mark_points(
+    image: &mut RgbImage,
+    grid: &TriGrid,
+    points: impl IntoIterator<Item = Point2<f64>>,
+    colour: [u8; 3],
+) {
+    for p in points {
+        if let Some((col, row)) = pixel_of(grid, &p) {
+            if let Some(px) = image.get_mut(col, row) {
+                *px = colour;
+            }
+        }
+    }
+}
+
+/// `image` with each pixel grown into a `k` × `k` block, so that a small grid stays legible.
+///
+/// ```
+/// use slamkit_core::image::RgbImage;
+/// let mut image = RgbImage::filled(2, 1, [0, 0, 0]);
+/// *image.get_mut(1, 0).unwrap() = [9, 9, 9];
+/// let big = slamkit_nav::render::upscale(&image, 3);
+/// assert_eq!((big.width(), big.height()), (6, 3));
+/// assert_eq!(big.get(2, 2), Some(&[0, 0, 0]));
+/// assert_eq!(big.get(3, 0), Some(&[9, 9, 9]));
+/// ```
+pub fn upscale(image: &RgbImage, k: usize) -> RgbImage {
+    let mut out = RgbImage::filled(image.width() * k, image.height() * k, [0, 0, 0]);
+    for y in 0..out.height() {
+        for x in 0..out.width() {
+            if let (Some(src), Some(dst)) = (image.get(x / k, y / k).copied(), out.get_mut(x, y)) {
+                *dst = src;
+            }
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -19,11 +19,15 @@
 //! * [`error`]: [`SimError`], bad world descriptions and impossible robot paths.
 //! * [`simulation`]: a robot, a world and its sensors; [`Simulation::lidar_run`] gives the scans,
 //!   ranges and ground truth of a whole run.
+//! * [`recording`]: a run written as a recording in real dataset formats (CARMEN log and
+//!   relations, the drone's CSV files, TUM RGB-D and KITTI folders), through `slamkit_io`'s
+//!   writers.
 //! * [`observations`]: the run's readings as `slamkit_core` [`Observation`](slamkit_core::Observation)s
 //!   in time order, ready for a session.
 //!
 //! Frames: world z up, origin at a floor corner of the room; base x forward, y left, z up;
-//! cameras x right, y down, z forward. Units m, rad, s. Nothing here prints or touches files.
+//! cameras x right, y down, z forward. Units m, rad, s. Nothing here prints; only [`recording`]
+//! writes files.
 //!
 //! ```
 //! use slamkit_sim::{SimConfig, Simulation, World};
@@ -46,6 +50,7 @@ pub mod motion;
 pub mod observations;
 pub mod odometry;
 pub mod range_finder;
+pub mod recording;
 pub mod relations;
 pub mod scene;
 pub mod simulation;

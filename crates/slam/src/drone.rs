@@ -21,10 +21,13 @@
 //! The map frame is the first scan's x, y and heading (or the initial pose given), with z = 0
 //! at the floor under it. The session never reads ground truth.
 
+pub mod grids;
+pub mod kidnapped;
 pub mod layer_choice;
 pub mod map;
 pub mod particle_filter;
 pub mod readings;
+pub mod simulated;
 
 use crate::session::{MapChange, Session, TrackingStatus, Update};
 use crate::SlamError;
@@ -137,6 +140,22 @@ impl DroneSlam {
             scans: Vec::new(),
             ignored: 0,
         })
+    }
+
+    /// A session with `config` fed every one of `observations` (in time order), calling
+    /// `on_scan` after each scan: a whole recording or simulated flight at once.
+    pub fn from_observations(
+        config: DroneSlamConfig,
+        observations: impl IntoIterator<Item = Observation>,
+        mut on_scan: impl FnMut(),
+    ) -> Result<Self, SlamError> {
+        let mut session = Self::new(config)?;
+        for observation in observations {
+            if session.push(observation).is_some() {
+                on_scan();
+            }
+        }
+        Ok(session)
     }
 
     /// Takes one observation (in time order); returns an update for a scan, `None` for a

@@ -35,6 +35,15 @@ pub enum SlamError {
     /// A navigation goal that cannot be reached.
     #[error("goal {0}")]
     Goal(String),
+    /// A dataset or recording could not be read or written.
+    #[error(transparent)]
+    Io(#[from] slamkit_io::IoError),
+    /// A run could not be scored against its ground truth.
+    #[error(transparent)]
+    Eval(#[from] slamkit_eval::EvalError),
+    /// A simulated run cannot be scored (no scan, no ground truth).
+    #[error("scoring: {0}")]
+    Scoring(String),
     /// A worker thread could not start, or died.
     #[error("thread: {0}")]
     Thread(String),

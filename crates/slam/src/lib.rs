@@ -11,7 +11,9 @@
 //! * [`session`]: the [`Session`] trait and [`Update`].
 //! * [`collator`]: restores time order when sources interleave.
 //! * [`drone`]: [`DroneSlam`], layered 2D lidar SLAM for a drone with up/down range finders,
-//!   attitude and gyro, and optionally optical flow and a particle filter.
+//!   attitude and gyro, and optionally optical flow and a particle filter; its grids per
+//!   layer, and its run on a simulated flight scored against the truth (`drone::simulated`,
+//!   `drone::kidnapped`).
 //! * [`map_file`]: the `.skmap` container: header, sections, checksum, atomic writes.
 //! * [`odometry_gate`]: odometry jumps a robot cannot have made, taken as no motion.
 //! * [`profile`]: named profiles (`config/*.toml`) and configuration files laid over a
@@ -19,7 +21,8 @@
 //! * [`lidar`]: [`LidarSlam`], 2D lidar SLAM (ICP-SLAM or a particle filter) and localisation in
 //!   a saved map.
 //! * [`visual`]: [`VisualSlam`], visual odometry of an RGB-D or stereo camera as a session, and
-//!   [`visual::run`], which overlaps decoding and frame preparation with tracking.
+//!   [`visual::run`], which overlaps decoding and frame preparation with tracking;
+//!   `visual::simulated` runs it on a simulated camera and scores it.
 //! * [`ground_robot`]: [`GroundRobotNav`], a ground robot's camera session, floor grid, planner
 //!   and path tracker; its closed loop in the simulator.
 //!

@@ -103,6 +103,36 @@ impl MapHeader {
             notes: serde_json::Value::Null,
         }
     }
+
+    /// The creation time as `YYYY-MM-DD HH:MM:SS UTC` (the civil-from-days algorithm of
+    /// Howard Hinnant's date library; no time-zone database needed).
+    ///
+    /// ```
+    /// use slamkit_slam::map_file::{MapHeader, Rig};
+    /// let mut header = MapHeader::new(Rig::Lidar2d, 0, None);
+    /// header.created_unix_s = 951_782_400;
+    /// assert_eq!(header.created_utc(), "2000-02-29 00:00:00 UTC");
+    /// ```
+    pub fn created_utc(&self) -> String {
+        let unix_s = self.created_unix_s;
+        let days = (unix_s / 86_400) as i64;
+        let secs = unix_s % 86_400;
+        let z = days + 719_468;
+        let era = z.div_euclid(146_097);
+        let doe = z.rem_euclid(146_097);
+        let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+        let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+        let mp = (5 * doy + 2) / 153;
+        let day = doy - (153 * mp + 2) / 5 + 1;
+        let month = if mp < 10 { mp + 3 } else { mp - 9 };
+        let year = yoe + era * 400 + i64::from(month <= 2);
+        format!(
+            "{year:04}-{month:02}-{day:02} {:02}:{:02}:{:02} UTC",
+            secs / 3600,
+            secs / 60 % 60,
+            secs % 60
+        )
+    }
 }
 
 /// One named block of a map file.

@@ -22,6 +22,7 @@ pub mod keyframes;
 pub mod pipeline;
 pub mod point_map;
 mod prepare;
+pub mod simulated;
 
 pub use keyframes::{Keyframe, VisualMap};
 pub use pipeline::{run, FrameRecord, RunOptions, RunStats, VisualRun};

@@ -7,17 +7,18 @@
 //! `maps/layer_NNN.{pgm,yaml,png}`, `map.{pgm,yaml,png}`, `cloud.ply`, `report.json`, with
 //! `--method rbpf` `trajectory_pf.tum` and `map_pf.*`, and with `--save-map` the `.skmap`.
 
-use crate::commands::drone_files::{processed_and_failed, run_session, write_maps, write_ply};
-use crate::commands::lidar::{load_config, print_summary, relations_metrics, LidarArgs, Method};
+use crate::commands::drone_files::{run_session, write_grids, write_ply};
+use crate::commands::lidar::{
+    load_config, print_summary, read_log, relations_metrics, LidarArgs, Method,
+};
 use crate::output::{peak_rss_bytes, prepare_out_dir, timings_json, write_report};
-use anyhow::Context;
 use serde_json::json;
 use slamkit_core::observation::time_ordered;
 use slamkit_core::Observation;
 use slamkit_io::drone_csv::{read_flow, read_imu, read_ranges};
 use slamkit_io::write_tum;
 use slamkit_lidar::rbpf::RbpfConfig;
-use slamkit_map::{save_map_yaml, save_png};
+use slamkit_map::{save_map_yaml, save_png, OccupancyGridConfig};
 use slamkit_slam::drone::particle_filter::drone_pf_config;
 use slamkit_slam::{DroneSlamConfig, Session};
 use std::path::Path;
@@ -34,11 +35,7 @@ pub fn run(args: &LidarArgs, ranges: &Path) -> anyhow::Result<()> {
         });
     }
     let out = prepare_out_dir(&args.out)?;
-    let log = slamkit_io::carmen::read_carmen(&args.log)
-        .with_context(|| format!("reading log {}", args.log.display()))?;
-    if log.scans.is_empty() {
-        anyhow::bail!("{} holds no laser scan", args.log.display());
-    }
+    let log = read_log(&args.log)?;
     let mut observations: Vec<Observation> = read_ranges(ranges)?
         .into_iter()
         .map(Observation::Range)
@@ -49,7 +46,7 @@ pub fn run(args: &LidarArgs, ranges: &Path) -> anyhow::Result<()> {
     if let Some(path) = &args.flow {
         observations.extend(read_flow(path)?.into_iter().map(Observation::Flow));
     }
-    let counts = json!({
+    let readings = json!({
         "ranges": observations.iter().filter(|o| matches!(o, Observation::Range(_))).count(),
         "imu": observations.iter().filter(|o| matches!(o, Observation::Imu(_))).count(),
         "flow": observations.iter().filter(|o| matches!(o, Observation::Flow(_))).count(),
@@ -59,15 +56,9 @@ pub fn run(args: &LidarArgs, ranges: &Path) -> anyhow::Result<()> {
 
     let trajectory = session.trajectory();
     write_tum(&out.join("trajectory.tum"), &trajectory)?;
-    let estimates = session.estimates();
-    let layer_height_m = config.layers.height.layer_height_m;
-    let (layer_files, _) = write_maps(
-        &out,
-        &log.scans,
-        &estimates,
-        &session.map_from_world(),
-        layer_height_m,
-    )?;
+    let grid_config = OccupancyGridConfig::default();
+    let grids = session.layer_grids(&log.scans, &session.map_from_world(), &grid_config)?;
+    let layer_files = write_grids(&out, &grids)?;
     write_ply(&out.join("cloud.ply"), &session.merged_cloud())?;
     let pf = match (session.particle_filter(), session.pf_trajectory()) {
         (Some(pf), Some(poses)) => {
@@ -84,19 +75,19 @@ pub fn run(args: &LidarArgs, ranges: &Path) -> anyhow::Result<()> {
         session.save(path)?;
     }
     let stats = session.stats();
-    let (processed, failed) = processed_and_failed(&estimates);
+    let counts = session.frame_counts();
     let report = json!({
         "input": { "log": args.log, "ranges": ranges, "imu": args.imu, "flow": args.flow },
         "method": "layered",
         "config": config,
         "frames": {
             "read": log.scans.len(),
-            "processed": processed,
-            "skipped": stats.scans_tilted + stats.scans_without_height,
-            "failed": failed,
+            "processed": counts.processed,
+            "skipped": counts.skipped,
+            "failed": counts.failed,
             "unreadable_lines": log.skipped.len(),
         },
-        "readings": counts,
+        "readings": readings,
         "stats": stats,
         "layers": layer_files
             .iter()

@@ -101,7 +101,7 @@ fn info(file: &Path, as_json: bool) -> anyhow::Result<()> {
         version.0, version.1, h.slamkit_version
     );
     println!("  rig         {}", h.rig);
-    println!("  created     {}", utc_date(h.created_unix_s));
+    println!("  created     {}", h.created_utc());
     println!("  keyframes   {}", h.keyframes);
     if let Some(m) = &lidar {
         println!("  edges       {}", m.edges.len());
@@ -156,38 +156,4 @@ fn export(file: &Path, out: &Path) -> anyhow::Result<()> {
         rig => anyhow::bail!("exporting {rig} maps is not supported yet"),
     }
     Ok(())
-}
-
-/// `YYYY-MM-DD HH:MM:SS UTC` for seconds since 1970-01-01 UTC (the civil-from-days algorithm
-/// of Howard Hinnant's date library).
-fn utc_date(unix_s: u64) -> String {
-    let days = (unix_s / 86_400) as i64;
-    let secs = unix_s % 86_400;
-    let z = days + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z.rem_euclid(146_097);
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let day = doy - (153 * mp + 2) / 5 + 1;
-    let month = if mp < 10 { mp + 3 } else { mp - 9 };
-    let year = yoe + era * 400 + i64::from(month <= 2);
-    format!(
-        "{year:04}-{month:02}-{day:02} {:02}:{:02}:{:02} UTC",
-        secs / 3600,
-        secs / 60 % 60,
-        secs % 60
-    )
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn dates_are_utc_calendar_dates() {
-        assert_eq!(utc_date(0), "1970-01-01 00:00:00 UTC");
-        assert_eq!(utc_date(951_782_400), "2000-02-29 00:00:00 UTC");
-        assert_eq!(utc_date(1_795_680_786), "2026-11-26 08:13:06 UTC");
-    }
 }

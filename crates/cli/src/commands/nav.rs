@@ -11,20 +11,17 @@
 //! `metrics.reached`, `metrics.time_s`, `metrics.path_length_m`, `metrics.optimal_length_m`,
 //! `metrics.max_cross_track_m`, ...).
 
-use crate::commands::plan::{parse_xy, save_rgb_png};
+use crate::commands::plan::parse_xy;
 use crate::output::{peak_rss_bytes, prepare_out_dir, timings_json, write_report, Unsuccessful};
 use crate::settings::settings;
 use anyhow::Context;
 use nalgebra::Point2;
 use serde_json::json;
-use slamkit_core::image::RgbImage;
 use slamkit_core::Pose2;
+use slamkit_io::image_writer::save_rgb_png;
 use slamkit_io::write_tum;
-use slamkit_nav::render::{draw_path, pixel_of};
 use slamkit_sim::World;
-use slamkit_slam::ground_robot::closed_loop::{
-    run_nav_loop, FrameRecord, NavLoopConfig, NavOutcome,
-};
+use slamkit_slam::ground_robot::closed_loop::{run_nav_loop, FrameRecord, NavLoopConfig};
 use slamkit_vo::FrameStatus;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -78,7 +75,7 @@ pub fn run(args: &NavArgs) -> anyhow::Result<()> {
     let out = prepare_out_dir(&args.out)?;
     write_tum(&out.join("trajectory.tum"), &outcome.estimate)?;
     write_tum(&out.join("groundtruth.tum"), &outcome.ground_truth)?;
-    write_map_png(&out.join("map.png"), &outcome, &config)?;
+    save_rgb_png(&out.join("map.png"), &outcome.map_image(&config))?;
     write_frames_csv(&out.join("frames.csv"), &outcome.frames)?;
     let o = &outcome;
     let report = json!({
@@ -161,51 +158,4 @@ fn write_frames_csv(path: &Path, frames: &[FrameRecord]) -> anyhow::Result<()> {
         text += &format!("{:.2},{},{estimate},{status}\n", f.t_s, pose(&f.truth));
     }
     std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))
-}
-
-/// Draws the robot's final map with every plan (red), the true-map shortest path (green) and
-/// the true driven path (blue), three pixels per cell.
-fn write_map_png(path: &Path, outcome: &NavOutcome, config: &NavLoopConfig) -> anyhow::Result<()> {
-    let grid = &outcome.grid;
-    let mut image = draw_path(
-        grid,
-        &grid.inflated(config.nav().inflate_cells(config.grid.resolution_m)),
-        &[],
-    );
-    let mut mark = |points: &mut dyn Iterator<Item = Point2<f64>>, colour: [u8; 3]| {
-        for p in points {
-            if let Some((col, row)) = pixel_of(grid, &p) {
-                if let Some(px) = image.get_mut(col, row) {
-                    *px = colour;
-                }
-            }
-        }
-    };
-    for plan in &outcome.plans {
-        mark(&mut plan.waypoints_m.iter().copied(), [230, 120, 120]);
-    }
-    mark(
-        &mut outcome.optimal.waypoints_m.iter().copied(),
-        [30, 160, 30],
-    );
-    let driven = outcome
-        .ground_truth
-        .poses
-        .iter()
-        .map(|p| Point2::new(p.pose.translation.x, p.pose.translation.y));
-    mark(&mut driven.collect::<Vec<_>>().into_iter(), [30, 60, 220]);
-    save_rgb_png(&upscale(&image, 3), path)
-}
-
-/// Each pixel becomes a `k` × `k` block.
-fn upscale(image: &RgbImage, k: usize) -> RgbImage {
-    let mut out = RgbImage::filled(image.width() * k, image.height() * k, [0, 0, 0]);
-    for y in 0..out.height() {
-        for x in 0..out.width() {
-            if let (Some(src), Some(dst)) = (image.get(x / k, y / k).copied(), out.get_mut(x, y)) {
-                *dst = src;
-            }
-        }
-    }
-    out
 }

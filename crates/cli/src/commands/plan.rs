@@ -10,7 +10,7 @@ use crate::output::{peak_rss_bytes, prepare_out_dir, write_report};
 use anyhow::Context;
 use nalgebra::Point2;
 use serde_json::json;
-use slamkit_core::image::RgbImage;
+use slamkit_io::image_writer::save_rgb_png;
 use slamkit_map::{load_map_yaml, TriGrid};
 use slamkit_nav::render::draw_path;
 use slamkit_nav::{plan_on_grid, GridPlanner, PlannedPath};
@@ -110,8 +110,8 @@ pub fn run(args: &PlanArgs) -> anyhow::Result<()> {
     let out = prepare_out_dir(&args.out)?;
     write_path_csv(&out.join("path.csv"), &path)?;
     save_rgb_png(
-        &draw_path(&grid, &inflated, &path.cells),
         &out.join("map.png"),
+        &draw_path(&grid, &inflated, &path.cells),
     )?;
     let report = json!({
         "input": args.map,
@@ -161,18 +161,6 @@ fn write_path_csv(path: &Path, plan: &PlannedPath) -> anyhow::Result<()> {
         writeln!(text, "{},{}", p.x, p.y)?;
     }
     std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))
-}
-
-/// Writes an RGB image as PNG.
-pub fn save_rgb_png(image: &RgbImage, path: &Path) -> anyhow::Result<()> {
-    let bytes: Vec<u8> = image.data().iter().flatten().copied().collect();
-    let (w, h) = (
-        u32::try_from(image.width())?,
-        u32::try_from(image.height())?,
-    );
-    let png = image::RgbImage::from_raw(w, h, bytes).context("image size mismatch")?;
-    png.save_with_format(path, image::ImageFormat::Png)
-        .with_context(|| format!("writing {}", path.display()))
 }
 
 #[cfg(test)]

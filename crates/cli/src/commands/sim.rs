@@ -1,43 +1,25 @@
 //! `slamkit sim`: simulated sensors in a world, written in real dataset formats.
 //!
-//! Files written in `--out`, by sensor:
-//! * always: `groundtruth.tum` (true `world_from_base` at every lidar time), `world.toml` (the
-//!   world simulated) and `report.json`;
-//! * `lidar2d`: `lidar.clf` (CARMEN log, ROBOTLASER1 lines with the drifting odometry) and
-//!   `lidar.relations` (Freiburg benchmark relations: scans 1 s apart and random far pairs, in
-//!   the plane: z, roll and pitch 0);
-//! * `range`: `ranges.csv` (`timestamp,up_m,down_m`, empty when nothing is in range);
-//! * `imu`: `imu.csv` (`timestamp,roll_rad,pitch_rad,gyro_yaw_rad`: attitude and the heading
-//!   integrated from the yaw-rate gyro, at the lidar's times);
-//! * `flow`: `flow.csv` (`timestamp,integration_s,forward_mps,left_mps`: the downward
-//!   optical-flow sensor's mean body-frame velocity over each period, empty when it saw no
-//!   surface); the three CSV files are those `slamkit lidar LOG --ranges --imu --flow` reads
-//!   ([`slamkit_io::drone_csv`] documents them) and give the drone's layered SLAM the same input
-//!   as `slamkit demo` on the same world and seed;
-//! * `rgbd`: a TUM RGB-D folder `tum_rgbd_fr1/` (30 Hz, 640×480, Freiburg 1 intrinsics, depth
-//!   at 5000 units per metre, `groundtruth.txt` of the camera), see [`cameras`];
-//! * `stereo`: a KITTI odometry folder `kitti_stereo/` (10 Hz rectified grey pair, 0.12 m
-//!   baseline, `poses.txt` of the left camera).
+//! Writes in `--out` `world.toml` (the world simulated), `report.json` and the recording of
+//! [`slamkit_sim::recording`]: `groundtruth.tum`, and by sensor `lidar.clf` + `lidar.relations`
+//! (`lidar2d`), `ranges.csv` (`range`), `imu.csv` (`imu`), `flow.csv` (`flow`), the TUM RGB-D
+//! folder `tum_rgbd_fr1/` (`rgbd`) and the KITTI folder `kitti_stereo/` (`stereo`). The three
+//! CSV files are those `slamkit lidar LOG --ranges --imu --flow` reads ([`slamkit_io::drone_csv`]
+//! documents them) and give the drone's layered SLAM the same input as `slamkit demo` on the
+//! same world and seed.
 //!
 //! `--duration` cuts the run short (camera folders hold 30 frames a second of run, about
 //! 1.5 MB a frame). The same world, sensors, robot, duration and seed give the same files byte
 //! for byte.
 
-pub mod cameras;
-
 use crate::output::{peak_rss_bytes, prepare_out_dir, timings_json, write_report};
 use crate::settings::settings;
 use anyhow::Context;
 use serde_json::json;
-use slamkit_core::observation::{FlowSample, ImuSample, RangePair};
-use slamkit_core::pose::{pose2_to_pose3, pose3_to_pose2};
-use slamkit_core::{StageTimings, Trajectory};
-use slamkit_io::carmen_writer::{write_carmen, write_relations};
-use slamkit_io::drone_csv::{self, write_flow, write_imu};
-use slamkit_io::relations::Relation;
-use slamkit_io::write_tum;
-use slamkit_sim::{relation_pairs, RobotKind, SimConfig, Simulation, Stream, World};
-use std::path::{Path, PathBuf};
+use slamkit_core::StageTimings;
+use slamkit_sim::recording::{write_recording, Sensor};
+use slamkit_sim::{RobotKind, SimConfig, Simulation, World};
+use std::path::PathBuf;
 use std::time::Instant;
 
 /// Arguments of `slamkit sim`.
@@ -79,17 +61,6 @@ pub enum Robot {
     Drone,
     /// A differential-drive ground robot driving the world's drive path.
     DiffDrive,
-}
-
-/// The sensors `slamkit sim` can write.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Sensor {
-    Lidar2d,
-    Range,
-    Imu,
-    Flow,
-    Rgbd,
-    Stereo,
 }
 
 const SENSOR_NAMES: &str = "lidar2d, range, imu, flow, rgbd, stereo";
@@ -137,55 +108,25 @@ pub fn run(args: &SimArgs) -> anyhow::Result<()> {
         Some(d) => anyhow::bail!("--duration {d}: must be a number of seconds, 0 or more"),
         None => sim.duration_s(),
     };
-    let times = |rate_hz: f64| slamkit_sim::sample_times(duration_s, rate_hz);
     let out = prepare_out_dir(&args.out)?;
-    write_file(&out.join("world.toml"), &world_toml)?;
-    let lidar_times = times(config.lidar.rate_hz);
-    let ground_truth = sim.ground_truth(&lidar_times);
-    write_tum(&out.join("groundtruth.tum"), &ground_truth)?;
-    let mut frames = serde_json::Map::new();
-    if sensors.contains(&Sensor::Lidar2d) {
-        let (scans, relations) = write_lidar(&sim, &out, &ground_truth)?;
-        frames.insert(
-            "lidar2d".into(),
-            json!({ "scans": scans, "relations": relations }),
-        );
-    }
-    if sensors.contains(&Sensor::Range) {
-        let readings = write_ranges(&sim, &times(config.range_finder.rate_hz), &out)?;
-        frames.insert("range".into(), json!({ "readings": readings }));
-    }
-    if sensors.contains(&Sensor::Imu) {
-        let samples: Vec<ImuSample> = sim
-            .attitude_readings(&lidar_times)
-            .iter()
-            .map(ImuSample::from)
-            .collect();
-        write_imu(&out.join("imu.csv"), &samples)?;
-        frames.insert("imu".into(), json!({ "readings": samples.len() }));
-    }
-    if sensors.contains(&Sensor::Flow) {
-        let samples: Vec<FlowSample> = sim
-            .flow_readings(&times(config.flow.rate_hz))
-            .iter()
-            .map(FlowSample::from)
-            .collect();
-        write_flow(&out.join("flow.csv"), &samples)?;
-        frames.insert("flow".into(), json!({ "readings": samples.len() }));
-    }
+    let world_path = out.join("world.toml");
+    std::fs::write(&world_path, world_toml)
+        .with_context(|| format!("writing {}", world_path.display()))?;
     let mut timings = StageTimings::default();
-    if sensors.contains(&Sensor::Rgbd) {
-        let camera_times = times(config.rgbd.rate_hz);
-        let dir = out.join(cameras::TUM_FOLDER);
-        cameras::write_tum_sequence(&sim, &camera_times, &dir, &mut timings)?;
-        frames.insert("rgbd".into(), json!({ "frames": camera_times.len() }));
-    }
-    if sensors.contains(&Sensor::Stereo) {
-        let camera_times = times(config.stereo.rate_hz);
-        let dir = out.join(cameras::KITTI_FOLDER);
-        cameras::write_kitti_sequence(&sim, &camera_times, &dir, &mut timings)?;
-        frames.insert("stereo".into(), json!({ "frames": camera_times.len() }));
-    }
+    let written = write_recording(&sim, &sensors, duration_s, &out, &mut timings)?;
+    let frames: serde_json::Map<String, serde_json::Value> = written
+        .iter()
+        .map(|w| {
+            (
+                w.sensor.name().into(),
+                json!(w
+                    .counts
+                    .iter()
+                    .cloned()
+                    .collect::<std::collections::BTreeMap<_, _>>()),
+            )
+        })
+        .collect();
     let report = json!({
         "input": {
             "world": args.world,
@@ -209,43 +150,4 @@ pub fn run(args: &SimArgs) -> anyhow::Result<()> {
         out.display()
     );
     Ok(())
-}
-
-/// Writes `lidar.clf` and `lidar.relations`; returns the numbers of scans and relations.
-fn write_lidar(
-    sim: &Simulation,
-    out: &Path,
-    ground_truth: &Trajectory,
-) -> anyhow::Result<(usize, usize)> {
-    let times: Vec<f64> = ground_truth.poses.iter().map(|p| p.timestamp).collect();
-    let scans = sim.lidar_scans(&times);
-    write_carmen(&out.join("lidar.clf"), &scans)?;
-    let far_pairs = (times.len() / 50).max(10);
-    let pairs = relation_pairs(&times, 1.0, far_pairs, &mut sim.rng(Stream::Relations, 0));
-    let planar = |k: usize| pose2_to_pose3(&pose3_to_pose2(&ground_truth.poses[k].pose));
-    let relations: Vec<Relation> = pairs
-        .iter()
-        .map(|&(i, j)| Relation {
-            t1: times[i],
-            t2: times[j],
-            t1_from_t2: planar(i).inverse() * planar(j),
-        })
-        .collect();
-    write_relations(&out.join("lidar.relations"), &relations)?;
-    Ok((scans.len(), relations.len()))
-}
-
-/// Writes `ranges.csv` with the readings at `times`; returns their number.
-fn write_ranges(sim: &Simulation, times: &[f64], out: &Path) -> anyhow::Result<usize> {
-    let readings: Vec<RangePair> = sim
-        .range_readings(times)
-        .iter()
-        .map(RangePair::from)
-        .collect();
-    drone_csv::write_ranges(&out.join("ranges.csv"), &readings)?;
-    Ok(readings.len())
-}
-
-fn write_file(path: &Path, text: &str) -> anyhow::Result<()> {
-    std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))
 }

@@ -177,30 +177,17 @@ fn io_format(f: DatasetFormat) -> IoFormat {
 
 /// Tells the layout from the folder's content.
 fn detect_format(dir: &Path) -> anyhow::Result<DatasetFormat> {
-    let has = |p: &str| dir.join(p).exists();
-    if has("image_0") && has("calib.txt") {
-        return Ok(DatasetFormat::Kitti);
-    }
-    if has("rgb.txt") && has("depth.txt") {
-        return Ok(DatasetFormat::Tum);
-    }
-    if has("cam0") && has("cam1") {
-        return Ok(DatasetFormat::Euroc);
-    }
-    if has("color") && has("depth") {
-        return Ok(DatasetFormat::Redwood);
-    }
-    let seven = std::fs::read_dir(dir)
-        .with_context(|| format!("reading {}", dir.display()))?
-        .filter_map(Result::ok)
-        .any(|e| {
-            e.file_name().to_string_lossy().ends_with(".color.jpg")
-                || e.file_name().to_string_lossy().ends_with(".color.png")
-        });
-    if seven {
-        return Ok(DatasetFormat::SevenScenes);
-    }
-    anyhow::bail!("cannot tell the layout of {}: pass --format", dir.display())
+    let detected = slamkit_io::layout::detect_layout(dir)?;
+    let Some(format) = detected else {
+        anyhow::bail!("cannot tell the layout of {}: pass --format", dir.display())
+    };
+    Ok(match format {
+        IoFormat::Tum => DatasetFormat::Tum,
+        IoFormat::Kitti => DatasetFormat::Kitti,
+        IoFormat::SevenScenes => DatasetFormat::SevenScenes,
+        IoFormat::Redwood => DatasetFormat::Redwood,
+        IoFormat::Euroc => DatasetFormat::Euroc,
+    })
 }
 
 /// The front end's defaults, the profile's `[vo]` settings (the named one, or the layout's

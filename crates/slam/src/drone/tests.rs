@@ -133,3 +133,36 @@ fn the_config_reads_from_toml_and_refuses_unknown_fields() {
     assert_eq!(config.layers.max_tilt_rad, 0.1);
     assert!(toml::from_str::<DroneSlamConfig>("speed = 1\n").is_err());
 }
+
+#[test]
+fn frame_counts_and_layer_grids_cover_every_scan() {
+    let observations = flight(20.0);
+    let scans: Vec<LaserScan> = observations
+        .iter()
+        .filter_map(|o| match o {
+            Observation::Scan(s) => Some(s.clone()),
+            _ => None,
+        })
+        .collect();
+    let mut calls = 0;
+    let session =
+        DroneSlam::from_observations(DroneSlamConfig::default(), observations, || calls += 1)
+            .unwrap();
+    assert_eq!(calls, scans.len(), "one call per scan");
+    let counts = session.frame_counts();
+    assert_eq!(counts.processed + counts.skipped, scans.len());
+    assert!(counts.processed > scans.len() / 2, "{counts:?}");
+    let config = slamkit_map::OccupancyGridConfig::default();
+    let grids = session
+        .layer_grids(&scans, &session.map_from_world(), &config)
+        .unwrap();
+    assert!(grids.layers.len() >= 2, "the flight climbs through layers");
+    let in_layers: usize = grids.layers.values().map(|l| l.scans).sum();
+    assert_eq!(in_layers, counts.processed);
+    let h = session.config().layers.height.layer_height_m;
+    for (k, l) in &grids.layers {
+        assert!((l.z_range_m[0] - *k as f64 * h).abs() < 1e-12);
+        assert!((l.z_range_m[1] - l.z_range_m[0] - h).abs() < 1e-12);
+    }
+    assert_eq!(grids.into_layer_maps().len(), session.layer_maps().len());
+}

@@ -12,10 +12,12 @@
 
 use nalgebra::Point2;
 use serde::{Deserialize, Serialize};
+use slamkit_core::image::RgbImage;
 use slamkit_core::observation::Observation;
 use slamkit_core::{Pose2, Pose3, StageTimings, Trajectory};
 use slamkit_map::floor_grid::FloorGridConfig;
 use slamkit_map::TriGrid;
+use slamkit_nav::render::{draw_path, mark_points, upscale};
 use slamkit_nav::{MotionGateConfig, PlannedPath, TrackerConfig, TrackerStatus};
 use slamkit_sim::{CameraMount, GroundRobot, RgbdCameraConfig, RobotKind, SimConfig, World};
 use slamkit_vo::{FrameStatus, VoConfig};
@@ -171,6 +173,31 @@ pub struct NavOutcome {
     pub frames: Vec<FrameRecord>,
     /// Per-stage wall times: `render`, `vo`, `map`, `plan`, `track` (ms).
     pub timings: StageTimings,
+}
+
+impl NavOutcome {
+    /// The robot's final map with its inflated obstacles shaded (by `config`'s robot radius),
+    /// every plan (red), the true-map shortest path (green) and the true driven path (blue),
+    /// three pixels per cell (`map.png` of `slamkit nav`).
+    pub fn map_image(&self, config: &NavLoopConfig) -> RgbImage {
+        let grid = &self.grid;
+        let inflated = grid.inflated(config.nav().inflate_cells(config.grid.resolution_m));
+        let mut image = draw_path(grid, &inflated, &[]);
+        for plan in &self.plans {
+            mark_points(
+                &mut image,
+                grid,
+                plan.waypoints_m.iter().copied(),
+                [230, 120, 120],
+            );
+        }
+        let optimal = self.optimal.waypoints_m.iter().copied();
+        mark_points(&mut image, grid, optimal, [30, 160, 30]);
+        let driven = self.ground_truth.poses.iter();
+        let driven = driven.map(|p| Point2::new(p.pose.translation.x, p.pose.translation.y));
+        mark_points(&mut image, grid, driven, [30, 60, 220]);
+        upscale(&image, 3)
+    }
 }
 
 /// One camera frame of the run.

@@ -107,3 +107,16 @@ fn saving_replaces_the_file_atomically() {
     let missing = dir.path().join("no/such/dir/map.skmap");
     assert!(matches!(sample().save(&missing), Err(MapFileError::Io(_))));
 }
+
+#[test]
+fn creation_dates_are_utc_calendar_dates() {
+    let mut header = MapHeader::new(Rig::Lidar2d, 0, None);
+    for (unix_s, date) in [
+        (0, "1970-01-01 00:00:00 UTC"),
+        (951_782_400, "2000-02-29 00:00:00 UTC"),
+        (1_795_680_786, "2026-11-26 08:13:06 UTC"),
+    ] {
+        header.created_unix_s = unix_s;
+        assert_eq!(header.created_utc(), date);
+    }
+}

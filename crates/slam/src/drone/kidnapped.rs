@@ -1,10 +1,13 @@
-//! The kidnapped-drone check: after the flight, the particle-filter layer choice
-//! ([`slamkit_slam::drone::layer_choice`]) re-localises the drone with no pose prior on the
-//! per-layer grid maps layered ICP-SLAM built, from a start scan in the second half of the
-//! flight to its end. Here only the scoring: the chosen start layer is compared with the
-//! true layer (true height over layer height) at the start, its layer at the end with the
-//! true one then, and its position with the ground truth.
+//! The kidnapped-drone check of the simulated flight (`slamkit demo`): after the flight, the
+//! particle-filter layer choice ([`super::layer_choice`]) re-localises the drone with no pose
+//! prior on the per-layer grid maps layered ICP-SLAM built, from a start scan in the second
+//! half of the flight to its end. The chosen start layer is compared with the true layer (true
+//! height over layer height) at the start, its layer at the end with the true one then, and its
+//! position with the ground truth. Like the simulated closed loop, it scores against the
+//! simulator's truth, which the localiser never sees.
 
+use super::layer_choice::LayerChoice;
+use super::ScanRecord;
 use nalgebra::Vector2;
 use serde_json::json;
 use slamkit_core::Pose2;
@@ -13,17 +16,15 @@ use slamkit_lidar::layers::layer_pf::{LayerHypothesis, LayerPfConfig, LayerPfErr
 use slamkit_lidar::layers::LayerScanStatus;
 use slamkit_map::OccupancyGrid;
 use slamkit_sim::LidarRun;
-use slamkit_slam::drone::layer_choice::LayerChoice;
-use slamkit_slam::drone::ScanRecord;
 use std::collections::BTreeMap;
 
 /// The start scan is the first one after this share of the flight whose true layer has a map.
-const START_FRACTION: f64 = 0.6;
+pub const START_FRACTION: f64 = 0.6;
 /// The position error is also reported after this many scans.
-const EARLY_SCANS: usize = 50;
+pub const EARLY_SCANS: usize = 50;
 /// The best hypothesis counts as converged once its particles' spread after an update is below
 /// this \[m\].
-const CONVERGED_SPREAD_M: f64 = 0.3;
+pub const CONVERGED_SPREAD_M: f64 = 0.3;
 
 /// What the re-localisation found.
 pub struct LayerLocalisation {
@@ -250,4 +251,37 @@ pub fn summary(found: Result<&LayerLocalisation, &NotRun>) -> String {
         opt(f.error_end_m),
         f.scans,
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use slamkit_core::Trajectory;
+
+    #[test]
+    fn without_a_mapped_layer_it_says_why_it_did_not_run() {
+        let run = LidarRun {
+            scans: vec![],
+            ranges: vec![],
+            attitudes: vec![],
+            flows: vec![],
+            ground_truth: Trajectory::new(),
+        };
+        let found = relocalise(
+            &run,
+            &[],
+            &BTreeMap::new(),
+            &HeightConfig::default(),
+            2.5,
+            1,
+        );
+        assert!(matches!(found, Err(NotRun::NoStartScan)));
+        let found = found.as_ref();
+        let json = metrics_json(found);
+        assert_eq!(json["not_run"], "no start scan in a mapped layer");
+        assert_eq!(
+            summary(found),
+            "layer choice by particles: no start scan in a mapped layer"
+        );
+    }
 }
