@@ -10,6 +10,8 @@
 //! Geometry provided here, each module citing its papers:
 //! * [`absolute_orientation`]: Horn (1987) and Umeyama (1991) closed-form similarity fits, used
 //!   for trajectory alignment and 3D–3D motion estimation.
+//! * [`block_elimination`]: sparse block LDLᵀ elimination (minimum-degree order) of pose-graph
+//!   normal equations, for any block size.
 //! * [`mod@ransac`]: adaptive RANSAC (Fischler & Bolles 1981) over any [`Estimator`].
 //! * [`camera`]: pinhole projection with Brown–Conrady distortion.
 //! * [`trajectory`]: timestamped poses with SE(3) interpolation; [`point_cloud`]: point sets.
@@ -24,6 +26,7 @@
 //! Nothing in this crate prints, reads files or exits the process.
 
 pub mod absolute_orientation;
+pub mod block_elimination;
 pub mod camera;
 pub mod error;
 pub mod image;
