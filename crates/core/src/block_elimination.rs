@@ -191,6 +191,11 @@ impl<'a, const D: usize> BlockSystem<'a, D> {
         }
     }
 
+    /// The diagonal block of node `i`.
+    pub fn diagonal(&self, i: usize) -> Option<&SMatrix<f64, D, D>> {
+        self.diag.get(i)
+    }
+
     /// The right-hand side of node `i`.
     pub fn rhs(&self, i: usize) -> Option<&SVector<f64, D>> {
         self.rhs.get(i)

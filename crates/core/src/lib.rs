@@ -13,11 +13,14 @@
 //! * [`block_elimination`]: sparse block LDLᵀ elimination (minimum-degree order) of pose-graph
 //!   normal equations, for any block size.
 //! * [`mod@ransac`]: adaptive RANSAC (Fischler & Bolles 1981) over any [`Estimator`].
+//! * [`robust`]: robust kernels (Cauchy) for reweighted least squares.
 //! * [`camera`]: pinhole projection with Brown–Conrady distortion.
 //! * [`trajectory`]: timestamped poses with SE(3) interpolation; [`point_cloud`]: point sets.
 //! * [`observation`]: the timestamped [`Observation`] every source produces and every SLAM
 //!   session consumes.
 //! * [`pose`]: the [`Pose2`] / [`Pose3`] aliases and conversions between 2D and 3D poses.
+//! * [`se3`]: the SE(3) exponential and logarithm, adjoint and right-Jacobian inverse (exact
+//!   Lie-group maps for pose optimisation).
 //! * [`scan`]: [`LaserScan`], a 2D laser scan as a planar lidar delivers it.
 //! * [`image`]: a minimal owned row-major image shared by the readers and the vision crates.
 //! * [`timing`]: per-stage timings summarised as median and 95th percentile ([`StageTimings`]).
@@ -34,7 +37,9 @@ pub mod observation;
 pub mod point_cloud;
 pub mod pose;
 pub mod ransac;
+pub mod robust;
 pub mod scan;
+pub mod se3;
 pub mod timing;
 pub mod trajectory;
 

@@ -14,6 +14,7 @@
 
 use nalgebra::{Matrix3, Vector2, Vector3};
 use slamkit_core::block_elimination::{BlockSystem, Elimination};
+use slamkit_core::robust::cauchy;
 use slamkit_core::Pose2;
 
 /// A relative pose measurement between two nodes.
@@ -124,7 +125,7 @@ impl PoseGraph {
             .filter_map(|e| {
                 let (a, b) = (self.nodes.get(e.from)?, self.nodes.get(e.to)?);
                 let r = edge_error(e, (a, a.rotation.angle()), (b, b.rotation.angle()));
-                Some(robust(e.robust_scale, r.dot(&(e.information * r))).0)
+                Some(cauchy(e.robust_scale, r.dot(&(e.information * r))).0)
             })
             .sum()
     }
@@ -152,7 +153,7 @@ impl PoseGraph {
             };
             let r = edge_error(e, (a, ta), (b, tb));
             let (ja, jb) = edge_jacobians(e, a, ta, b);
-            let (_, w) = robust(e.robust_scale, r.dot(&(e.information * r)));
+            let (_, w) = cauchy(e.robust_scale, r.dot(&(e.information * r)));
             let omega = e.information * w;
             system.add_diag(
                 e.from,
@@ -214,17 +215,6 @@ fn edge_jacobians(e: &Edge, a: &Pose2, ta: f64, b: &Pose2) -> (Matrix3<f64>, Mat
         1.0,
     );
     (ja, jb)
-}
-
-/// Cauchy kernel on a squared Mahalanobis error: `(½ρ(χ²), ρ'(χ²))`, or `(½χ², 1)` without one.
-fn robust(scale: Option<f64>, chi2: f64) -> (f64, f64) {
-    match scale {
-        Some(k) if k > 0.0 => {
-            let k2 = k * k;
-            (0.5 * k2 * (1.0 + chi2 / k2).ln(), 1.0 / (1.0 + chi2 / k2))
-        }
-        _ => (0.5 * chi2, 1.0),
-    }
 }
 
 /// An angle wrapped to (−π, π]: returned as it is when already there (edge errors are small,
