@@ -11,11 +11,13 @@
 //! `T ← T exp(δ)`, and the Jacobians are exact: `∂e/∂δ_to = J_r⁻¹(e)`,
 //! `∂e/∂δ_from = −J_r⁻¹(e) Ad(T_to⁻¹ T_from)`.
 //!
-//! Each iteration solves the damped normal equations `(H + λI) δ = −g` by sparse block LDLᵀ
+//! Each iteration solves the damped normal equations `(H + λD) δ = −g`, `D` the diagonal of `H`
+//! (Marquardt's scaling, so the damping does not depend on units), by sparse block LDLᵀ
 //! elimination in minimum-degree order ([`slamkit_core::block_elimination`], 6×6 blocks; the
 //! symbolic part is done once per optimisation). The damping follows Nielsen's rule (Madsen,
-//! Nielsen & Tingleff, "Methods for non-linear least squares problems", 2004, §3.2): `λ` starts
-//! at `τ · max diag(H)`, shrinks by `max(⅓, 1 − (2ϱ − 1)³)` after a step with gain ratio `ϱ > 0`
+//! Nielsen & Tingleff, "Methods for non-linear least squares problems", 2004, §3.2; Ceres and
+//! g2o use it too): `λ` starts at `τ`, shrinks by `max(⅓, 1 − (2ϱ − 1)³)` after a step with gain
+//! ratio `ϱ > 0`
 //! and grows by `ν` (doubling each time) after a rejected one. Edges may carry a Cauchy kernel
 //! (iteratively reweighted), so a wrong loop closure pulls with bounded force. Fixed nodes (the
 //! first one by default, to hold the gauge) do not move.
@@ -26,6 +28,7 @@ use serde::{Deserialize, Serialize};
 use slamkit_core::block_elimination::{BlockSystem, Elimination};
 use slamkit_core::robust::cauchy;
 use slamkit_core::{se3, Pose3};
+use slamkit_io::g2o::G2oGraph;
 
 /// A relative pose measurement between two nodes.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -52,7 +55,7 @@ pub struct LmConfig {
     pub relative_tolerance: f64,
     /// Stop when an accepted step lowers the cost by less than this.
     pub absolute_tolerance: f64,
-    /// Initial damping as a fraction of the largest diagonal entry of `H` (τ).
+    /// Initial damping `τ`, relative to the diagonal of `H`.
     pub initial_damping: f64,
     /// Give up an iteration after this many rejected steps in a row.
     pub max_rejections: usize,
@@ -60,7 +63,7 @@ pub struct LmConfig {
 
 impl Default for LmConfig {
     /// 100 iterations; tolerances 1e-5 relative and absolute (GTSAM's defaults); τ = 1e-5
-    /// (g2o's default); 10 rejections.
+    /// (g2o's default τ, here with Marquardt's scaling); 10 rejections.
     fn default() -> Self {
         Self {
             max_iterations: 100,
@@ -147,6 +150,31 @@ impl PoseGraph {
         Ok(())
     }
 
+    /// The graph a g2o file holds ([`slamkit_io::g2o`]): its vertices in file order, its
+    /// edges without a kernel, its `FIX` vertices held (the first vertex when there are none).
+    pub fn from_g2o(g2o: &G2oGraph) -> Result<Self, VoError> {
+        let mut graph = Self::new();
+        for v in &g2o.vertices {
+            graph.add_node(v.world_from_vertex);
+        }
+        if !g2o.fixed.is_empty() {
+            graph.set_fixed(0, false);
+            for &i in &g2o.fixed {
+                graph.set_fixed(i, true);
+            }
+        }
+        for e in &g2o.edges {
+            graph.add_edge(Edge {
+                from: e.from,
+                to: e.to,
+                from_from_to: e.from_from_to,
+                information: e.information,
+                robust_scale: None,
+            })?;
+        }
+        Ok(graph)
+    }
+
     /// The node poses.
     pub fn nodes(&self) -> &[Pose3] {
         &self.nodes
@@ -202,7 +230,7 @@ impl PoseGraph {
         while summary.iterations < config.max_iterations && cost > 0.0 {
             summary.iterations += 1;
             let system = self.linearize(&elimination);
-            let mut l = *lambda.get_or_insert(config.initial_damping * system.max_diagonal);
+            let mut l = *lambda.get_or_insert(config.initial_damping);
             let mut accepted = None;
             for _ in 0..config.max_rejections.max(1) {
                 let Some((step, predicted)) = system.damped_step(l) else {
@@ -267,10 +295,6 @@ impl PoseGraph {
             }
         }
         // A fixed node's block is the identity with a zero right-hand side: its step is zero.
-        let max_diagonal = (0..self.nodes.len())
-            .filter_map(|i| system.diagonal(i))
-            .map(|d| d.diagonal().max())
-            .fold(0.0, f64::max);
         let fixed = self.fixed.clone();
         system.add_to_diagonals(|i, _| {
             if fixed.get(i).copied().unwrap_or(true) {
@@ -279,43 +303,46 @@ impl PoseGraph {
                 Matrix6::zeros()
             }
         });
-        Linearization {
-            system,
-            max_diagonal,
-            fixed,
-        }
+        Linearization { system, fixed }
     }
 }
 
 /// The normal equations `H δ = −g` at one linearisation point.
 struct Linearization<'a> {
     system: BlockSystem<'a, 6>,
-    /// Largest diagonal entry of `H`, which scales the initial damping.
-    max_diagonal: f64,
     fixed: Vec<bool>,
 }
 
 impl Linearization<'_> {
     /// The step for damping `lambda` and the cost decrease the quadratic model predicts for it,
-    /// `½ δᵀ(λδ − g)`; `None` when the damped system is singular.
+    /// `½ δᵀ(λDδ − g)`; `None` when the damped system is singular.
     fn damped_step(&self, lambda: f64) -> Option<(Vec<Vector6<f64>>, f64)> {
         let mut damped = self.system.clone();
         let fixed = &self.fixed;
-        damped.add_to_diagonals(|i, _| {
+        damped.add_to_diagonals(|i, d| {
             if fixed.get(i).copied().unwrap_or(true) {
                 Matrix6::zeros()
             } else {
-                Matrix6::identity() * lambda
+                Matrix6::from_diagonal(&(damping_diagonal(d) * lambda))
             }
         });
         let step: Vec<Vector6<f64>> = damped.solve()?.into_iter().map(|d| -d).collect();
         let predicted = step
             .iter()
             .enumerate()
-            .filter_map(|(i, d)| Some(0.5 * d.dot(&(d * lambda - self.system.rhs(i)?))))
+            .filter_map(|(i, d)| {
+                let scaled = damping_diagonal(self.system.diagonal(i)?).component_mul(d);
+                Some(0.5 * d.dot(&(scaled * lambda - self.system.rhs(i)?)))
+            })
             .sum();
         Some((step, predicted))
     }
+}
+
+/// Marquardt's damping scale `D` of a diagonal block of `H`: its diagonal, clamped to
+/// \[1e-6, 1e32\] as Ceres does so that an unobserved direction still gets damped.
+fn damping_diagonal(block: &Matrix6<f64>) -> Vector6<f64> {
+    block.diagonal().map(|v| v.clamp(1e-6, 1e32))
 }
 
 /// The error `e = log(Z⁻¹ A⁻¹ B)` of a measurement `Z` of pose `b` in the frame of pose `a`,
@@ -499,6 +526,21 @@ mod tests {
         assert_eq!(graph.nodes()[10], held);
         assert_eq!(graph.nodes()[0], truth[0]);
         assert_ne!(graph.nodes()[5], truth[5]);
+    }
+
+    #[test]
+    fn a_g2o_graph_keeps_its_fixed_vertices() {
+        let info = "1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 1 0 0 1 0 1";
+        let text = format!(
+            "VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1\nVERTEX_SE3:QUAT 1 1 0 0 0 0 0 1\n\
+             EDGE_SE3:QUAT 0 1 2 0 0 0 0 0 1 {info}\nFIX 1\n"
+        );
+        let mut graph = PoseGraph::from_g2o(&slamkit_io::g2o::parse_g2o(&text).unwrap()).unwrap();
+        assert_eq!(graph.cost(), 0.5);
+        graph.optimize(&LmConfig::default());
+        // Vertex 1 is held, so vertex 0 moves to x = −1.
+        assert!((graph.nodes()[0].translation.x + 1.0).abs() < 1e-9);
+        assert_eq!(graph.nodes()[1].translation.x, 1.0);
     }
 
     #[test]
