@@ -16,6 +16,7 @@
 //!   (read and written), the signals layered drone SLAM takes besides the scans.
 //! * 2D lidar logs: [`carmen`] (CARMEN `.clf`, plain or gzip: scans with wheel odometry) and
 //!   [`mrpt_text`] (text dumps of MRPT rawlogs and ground-truth files).
+//! * [`g2o`]: 3D pose graphs in g2o's text format (`VERTEX_SE3:QUAT`, `EDGE_SE3:QUAT`, `FIX`).
 //! * [`relations`]: ground-truth relations of the 2D SLAM benchmark (`*.relations`,
 //!   Kümmerle et al. 2009).
 //! * [`ply`]: point clouds as PLY for any viewer.
@@ -27,6 +28,7 @@ pub mod dataset;
 pub mod drone_csv;
 pub mod error;
 pub mod euroc;
+pub mod g2o;
 pub mod image_io;
 pub mod image_writer;
 pub mod kitti;

@@ -7,14 +7,15 @@
 //! Nodes are poses `world_from_node`; an edge holds a measured `from_from_to` with its
 //! information matrix. Each Gauss–Newton step solves the block-sparse normal equations by
 //! eliminating nodes one at a time in minimum-degree order (variable elimination, i.e. a sparse
-//! block LDLᵀ factorisation; the order and fill-in are worked out once per optimisation and
-//! reused by every iteration), which keeps the fill-in small on the near-planar graphs a robot
-//! builds. Edges may carry a Cauchy kernel (iteratively reweighted), so a wrong loop closure
+//! block LDLᵀ factorisation with 3×3 blocks, [`slamkit_core::block_elimination`]; the order and
+//! fill-in are worked out once per optimisation and reused by every iteration), which keeps the
+//! fill-in small on the near-planar graphs a robot builds. Edges may carry a Cauchy kernel (iteratively reweighted), so a wrong loop closure
 //! pulls with bounded force. The first node is held fixed.
 
 use nalgebra::{Matrix3, Vector2, Vector3};
+use slamkit_core::block_elimination::{BlockSystem, Elimination};
+use slamkit_core::robust::cauchy;
 use slamkit_core::Pose2;
-use std::collections::{BTreeMap, BTreeSet};
 
 /// A relative pose measurement between two nodes.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -94,7 +95,7 @@ impl PoseGraph {
     pub fn optimize(&mut self, max_iterations: usize, tolerance: f64) -> OptimizeSummary {
         let initial_cost = self.cost();
         let mut iterations = 0;
-        let elimination = Elimination::new(self.nodes.len(), &self.edges);
+        let elimination = self.elimination();
         while iterations < max_iterations && self.nodes.len() > 1 {
             iterations += 1;
             let Some(step) = self.solve_step(&elimination) else {
@@ -124,14 +125,20 @@ impl PoseGraph {
             .filter_map(|e| {
                 let (a, b) = (self.nodes.get(e.from)?, self.nodes.get(e.to)?);
                 let r = edge_error(e, (a, a.rotation.angle()), (b, b.rotation.angle()));
-                Some(robust(e.robust_scale, r.dot(&(e.information * r))).0)
+                Some(cauchy(e.robust_scale, r.dot(&(e.information * r))).0)
             })
             .sum()
     }
 
+    /// The elimination order and fill-in of the graph's normal equations.
+    fn elimination(&self) -> Elimination {
+        let pairs: Vec<(usize, usize)> = self.edges.iter().map(|e| (e.from, e.to)).collect();
+        Elimination::new(self.nodes.len(), &pairs)
+    }
+
     /// Builds and solves the normal equations at the current poses; `None` when singular.
     fn solve_step(&self, elimination: &Elimination) -> Option<Vec<Vector3<f64>>> {
-        let mut system = BlockSystem::new(elimination);
+        let mut system = BlockSystem::<3>::new(elimination);
         // Hold the first node: a stiff prior on its increment.
         system.add_diag(0, Matrix3::identity() * 1e12, Vector3::zeros());
         // Each node's angle once per step rather than once per edge (atan2 was a third of the
@@ -146,7 +153,7 @@ impl PoseGraph {
             };
             let r = edge_error(e, (a, ta), (b, tb));
             let (ja, jb) = edge_jacobians(e, a, ta, b);
-            let (_, w) = robust(e.robust_scale, r.dot(&(e.information * r)));
+            let (_, w) = cauchy(e.robust_scale, r.dot(&(e.information * r)));
             let omega = e.information * w;
             system.add_diag(
                 e.from,
@@ -210,17 +217,6 @@ fn edge_jacobians(e: &Edge, a: &Pose2, ta: f64, b: &Pose2) -> (Matrix3<f64>, Mat
     (ja, jb)
 }
 
-/// Cauchy kernel on a squared Mahalanobis error: `(½ρ(χ²), ρ'(χ²))`, or `(½χ², 1)` without one.
-fn robust(scale: Option<f64>, chi2: f64) -> (f64, f64) {
-    match scale {
-        Some(k) if k > 0.0 => {
-            let k2 = k * k;
-            (0.5 * k2 * (1.0 + chi2 / k2).ln(), 1.0 / (1.0 + chi2 / k2))
-        }
-        _ => (0.5 * chi2, 1.0),
-    }
-}
-
 /// An angle wrapped to (−π, π]: returned as it is when already there (edge errors are small,
 /// so almost always; the sine–cosine–arctangent round trip it replaces was a tenth of the
 /// optimisation's time), else shifted by whole turns.
@@ -236,175 +232,6 @@ fn wrap(a: f64) -> f64 {
         w - TAU
     } else {
         w
-    }
-}
-
-/// The elimination of the block-sparse normal equations of a fixed graph, worked out once per
-/// optimisation (a symbolic factorisation): the order, minimum degree first, and for each step
-/// the blocks it reads and the blocks it updates, fill-in included. Every Gauss–Newton iteration
-/// then runs the same arithmetic on flat block arrays, without any map look-up.
-struct Elimination {
-    /// Number of nodes.
-    nodes: usize,
-    /// Number of off-diagonal blocks (ordered pairs, fill-in included).
-    blocks: usize,
-    /// Blocks `(from, to)` and `(to, from)` of each edge.
-    edge_blocks: Vec<(usize, usize)>,
-    steps: Vec<Step>,
-}
-
-/// Elimination of one node.
-struct Step {
-    node: usize,
-    /// The node's remaining neighbours in ascending order, with the block `(node, neighbour)`.
-    row: Vec<(usize, usize)>,
-    /// For neighbours `a` (outer) and `b` (inner) of `row`: the block `(a, b)` the step updates
-    /// (unused where `a == b`, which updates `a`'s diagonal block).
-    updates: Vec<usize>,
-}
-
-impl Elimination {
-    fn new(nodes: usize, edges: &[Edge]) -> Self {
-        // rows[i][j] = index of block (i, j).
-        let mut rows: Vec<BTreeMap<usize, usize>> = vec![BTreeMap::new(); nodes];
-        let mut blocks = 0;
-        let mut block = |rows: &mut Vec<BTreeMap<usize, usize>>, i: usize, j: usize| {
-            rows.get_mut(i)
-                .map(|row| {
-                    *row.entry(j).or_insert_with(|| {
-                        blocks += 1;
-                        blocks - 1
-                    })
-                })
-                .unwrap_or(usize::MAX)
-        };
-        let edge_blocks = edges
-            .iter()
-            .map(|e| {
-                (
-                    block(&mut rows, e.from, e.to),
-                    block(&mut rows, e.to, e.from),
-                )
-            })
-            .collect();
-        let mut queue: BTreeSet<(usize, usize)> =
-            rows.iter().enumerate().map(|(i, r)| (r.len(), i)).collect();
-        let mut steps = Vec::with_capacity(nodes);
-        while let Some((_, k)) = queue.pop_first() {
-            let row: Vec<(usize, usize)> = rows
-                .get_mut(k)
-                .map(std::mem::take)
-                .unwrap_or_default()
-                .into_iter()
-                .collect();
-            let mut updates = Vec::with_capacity(row.len() * row.len());
-            for &(a, _) in &row {
-                let old_degree = rows.get(a).map_or(0, BTreeMap::len);
-                if let Some(r) = rows.get_mut(a) {
-                    r.remove(&k);
-                }
-                for &(b, _) in &row {
-                    updates.push(if a == b {
-                        usize::MAX
-                    } else {
-                        block(&mut rows, a, b)
-                    });
-                }
-                let new_degree = rows.get(a).map_or(0, BTreeMap::len);
-                if queue.remove(&(old_degree, a)) {
-                    queue.insert((new_degree, a));
-                }
-            }
-            steps.push(Step {
-                node: k,
-                row,
-                updates,
-            });
-        }
-        Self {
-            nodes,
-            blocks,
-            edge_blocks,
-            steps,
-        }
-    }
-}
-
-/// Symmetric block-sparse normal equations `H x = g` with 3×3 blocks, laid out by an
-/// [`Elimination`].
-struct BlockSystem<'a> {
-    elimination: &'a Elimination,
-    diag: Vec<Matrix3<f64>>,
-    rhs: Vec<Vector3<f64>>,
-    /// Off-diagonal blocks `H_ij`, `i ≠ j`, stored in both directions.
-    off: Vec<Matrix3<f64>>,
-}
-
-impl<'a> BlockSystem<'a> {
-    fn new(elimination: &'a Elimination) -> Self {
-        Self {
-            elimination,
-            diag: vec![Matrix3::zeros(); elimination.nodes],
-            rhs: vec![Vector3::zeros(); elimination.nodes],
-            off: vec![Matrix3::zeros(); elimination.blocks],
-        }
-    }
-
-    fn add_diag(&mut self, i: usize, h: Matrix3<f64>, g: Vector3<f64>) {
-        if let (Some(d), Some(r)) = (self.diag.get_mut(i), self.rhs.get_mut(i)) {
-            *d += h;
-            *r += g;
-        }
-    }
-
-    /// Adds `h_ij` to the off-diagonal blocks of edge `edge` (and its transpose to the other).
-    fn add_off(&mut self, edge: usize, h_ij: Matrix3<f64>) {
-        let Some(&(ij, ji)) = self.elimination.edge_blocks.get(edge) else {
-            return;
-        };
-        if let Some(b) = self.off.get_mut(ij) {
-            *b += h_ij;
-        }
-        if let Some(b) = self.off.get_mut(ji) {
-            *b += h_ij.transpose();
-        }
-    }
-
-    /// Solves by block elimination in the precomputed order, then back substitution.
-    fn solve(mut self) -> Option<Vec<Vector3<f64>>> {
-        let steps = &self.elimination.steps;
-        // Per step: D⁻¹ and the rhs at elimination.
-        let mut eliminated = Vec::with_capacity(steps.len());
-        for step in steps {
-            let d_inv = self.diag.get(step.node)?.try_inverse()?;
-            let g_k = *self.rhs.get(step.node)?;
-            let m = step.row.len();
-            for (ai, &(a, ka)) in step.row.iter().enumerate() {
-                let h_ak_dinv = self.off.get(ka)?.transpose() * d_inv;
-                for (bi, &(b, kb)) in step.row.iter().enumerate() {
-                    let update = h_ak_dinv * self.off.get(kb)?;
-                    let target = if a == b {
-                        self.diag.get_mut(a)?
-                    } else {
-                        self.off.get_mut(*step.updates.get(ai * m + bi)?)?
-                    };
-                    *target -= update;
-                }
-                *self.rhs.get_mut(a)? -= h_ak_dinv * g_k;
-            }
-            eliminated.push((d_inv, g_k));
-        }
-        let mut x = vec![Vector3::zeros(); self.elimination.nodes];
-        for (step, (d_inv, g_k)) in steps.iter().zip(eliminated).rev() {
-            let mut coupled = g_k;
-            for &(j, kj) in &step.row {
-                coupled -= self.off.get(kj)? * x.get(j).copied().unwrap_or_default();
-            }
-            *x.get_mut(step.node)? = d_inv * coupled;
-        }
-        x.iter()
-            .all(|v| v.iter().all(|c| c.is_finite()))
-            .then_some(x)
     }
 }
 
@@ -484,7 +311,7 @@ mod tests {
     #[test]
     fn elimination_matches_a_dense_solve() {
         let (_, graph) = drifting_square(5);
-        let elimination = Elimination::new(graph.nodes().len(), graph.edges());
+        let elimination = graph.elimination();
         let sparse = graph.solve_step(&elimination).unwrap();
         let n = graph.nodes().len();
         let mut h = nalgebra::DMatrix::<f64>::zeros(3 * n, 3 * n);

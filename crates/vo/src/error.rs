@@ -18,6 +18,16 @@ pub enum VoError {
     /// An image kernel rejected its input or configuration.
     #[error("vision: {0}")]
     Vision(#[from] slamkit_vision::VisionError),
+    /// A pose-graph edge was refused.
+    #[error("pose-graph edge {from} -> {to}: {reason}")]
+    InvalidEdge {
+        /// Index of the node the measurement is expressed in.
+        from: usize,
+        /// Index of the measured node.
+        to: usize,
+        /// What is wrong.
+        reason: &'static str,
+    },
     /// Writing an output file failed.
     #[error("writing {path}: {source}")]
     Write {

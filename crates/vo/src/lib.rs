@@ -15,6 +15,8 @@
 //! * [`odometry`]: frame-to-frame or local-map tracking, failed frames keeping the reference.
 //! * [`local_map`]: features of the recent key frames, positions averaged over observations.
 //! * [`voxel_map`]: the world point map, merged per voxel, PLY export.
+//! * [`pose_graph`]: the SE(3) pose graph of loop closure, optimised by Levenberg–Marquardt
+//!   with exact SE(3) Jacobians, sparse block elimination and an optional Cauchy kernel.
 //! * [`metrics`]: ATE, RPE and end-point drift against ground truth.
 //! * [`config`]: the configuration, defaults and TOML.
 //! * [`error`]: [`VoError`]; a bad frame is not an error but a failed [`FrameStatus`], counted
@@ -28,6 +30,7 @@ pub mod local_map;
 pub mod metrics;
 pub mod motion;
 pub mod odometry;
+pub mod pose_graph;
 pub mod registration;
 pub mod spacing;
 pub mod voxel_map;
