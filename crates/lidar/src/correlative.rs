@@ -305,6 +305,56 @@ pub fn correlative_match(
     initial: &Pose2,
     config: &CorrelativeConfig,
 ) -> Result<CorrelativeResult, LidarError> {
+    let heading = [initial.rotation.angle()];
+    let results = correlative_match_headings(
+        source,
+        target,
+        &initial.translation.vector,
+        &heading,
+        config,
+    )?;
+    results.into_iter().next().ok_or(LidarError::TooFewPoints {
+        got: source.len(),
+        min: config.min_points.max(1),
+    })
+}
+
+/// [`correlative_match`] from each of `headings` \[rad\] at one `translation`, one result per
+/// heading: the likelihood field is built once for all of them (a global search tries four
+/// headings at every place, and the field was a third of its time). Each result equals
+/// [`correlative_match`]'s from `Pose2::new(translation, heading)` when `heading` is that
+/// pose's own angle (in (−π, π]).
+///
+/// ```
+/// use nalgebra::{Point2, Vector2};
+/// use slamkit_core::Pose2;
+/// use slamkit_lidar::correlative::{correlative_match, correlative_match_headings, CorrelativeConfig};
+///
+/// // an L-shaped corner seen from the origin, and the same scan turned by 0.1 rad
+/// let target: Vec<Point2<f64>> = (0..40)
+///     .map(|i| Point2::new(2.0, -1.0 + 0.05 * i as f64))
+///     .chain((0..40).map(|i| Point2::new(0.05 * i as f64, 1.0)))
+///     .collect();
+/// let truth = Pose2::new(Vector2::new(0.1, 0.0), 0.1);
+/// let source: Vec<Point2<f64>> = target.iter().map(|p| truth.inverse() * p).collect();
+/// let config = CorrelativeConfig::default();
+/// let guesses = [Pose2::identity(), Pose2::new(Vector2::zeros(), 0.3)];
+/// let headings: Vec<f64> = guesses.iter().map(|g| g.rotation.angle()).collect();
+/// let all = correlative_match_headings(&source, &target, &Vector2::zeros(), &headings, &config)?;
+/// for (result, guess) in all.iter().zip(&guesses) {
+///     assert_eq!(result, &correlative_match(&source, &target, guess, &config)?);
+/// }
+/// let err = truth.inverse() * all[0].target_from_source;
+/// assert!(err.translation.vector.norm() < 0.05 && err.rotation.angle().abs() < 0.02);
+/// # Ok::<(), slamkit_lidar::LidarError>(())
+/// ```
+pub fn correlative_match_headings(
+    source: &[Point2<f64>],
+    target: &[Point2<f64>],
+    translation: &Vector2<f64>,
+    headings: &[f64],
+    config: &CorrelativeConfig,
+) -> Result<Vec<CorrelativeResult>, LidarError> {
     validate(config)?;
     if source.len() < config.min_points.max(1) {
         return Err(LidarError::TooFewPoints {
@@ -314,7 +364,7 @@ pub fn correlative_match(
     }
     let res = config.resolution_m;
     let reach_m = source.iter().map(|p| p.coords.norm()).fold(0.0, f64::max);
-    let centre = Point2::from(initial.translation.vector);
+    let centre = Point2::from(*translation);
     let half = reach_m + config.linear_window_m + 4.0 * config.sigma_m + res;
     let origin = centre - Vector2::new(half, half);
     let side = (2.0 * half / res).ceil() as i64 + 1;
@@ -327,22 +377,27 @@ pub fn correlative_match(
         .min(config.max_angular_step_rad)
         .max(1e-4);
     let n_ang = (config.angular_window_rad / step).ceil() as i64;
-    let theta0 = initial.rotation.angle();
-    let angles: Vec<f64> = (-n_ang..=n_ang).map(|a| theta0 + a as f64 * step).collect();
-    let footprints: Vec<Vec<(i64, i64)>> = angles
+    let sweeps: Vec<Sweep> = headings
         .iter()
-        .map(|&theta| {
-            let pose = Pose2::new(initial.translation.vector, theta);
-            source
+        .map(|&theta0| {
+            let angles: Vec<f64> = (-n_ang..=n_ang).map(|a| theta0 + a as f64 * step).collect();
+            let footprints = angles
                 .iter()
-                .map(|p| lattice_cell(&origin, res, &(pose * p)))
-                .collect()
+                .map(|&theta| {
+                    let pose = Pose2::new(*translation, theta);
+                    source
+                        .iter()
+                        .map(|p| lattice_cell(&origin, res, &(pose * p)))
+                        .collect()
+                })
+                .collect();
+            (angles, footprints)
         })
         .collect();
     let w = (config.linear_window_m / res).ceil() as i64;
     // Only the cells the shifted footprints (and the bound's windows beyond them) can read are
     // built: the same cells, with the same values, as the whole square around the guess.
-    let (lo, hi) = footprints.iter().flatten().fold(
+    let (lo, hi) = sweeps.iter().flat_map(|(_, f)| f.iter().flatten()).fold(
         ((i64::MAX, i64::MAX), (i64::MIN, i64::MIN)),
         |(lo, hi), &(i, j)| ((lo.0.min(i), lo.1.min(j)), (hi.0.max(i), hi.1.max(j))),
     );
@@ -354,22 +409,31 @@ pub fn correlative_match(
     );
     let field = Field::new(target, &origin, (lo, hi), res, config.sigma_m);
     let bound_field = field.sliding_max(coarse);
-    let rotated: Vec<Footprint> = footprints
-        .into_iter()
-        .map(|cells| Footprint::new(cells, field.width))
-        .collect();
-
     let starts: Vec<i64> = (-w..=w).step_by(coarse).collect();
-    let blocks = bound_blocks(&bound_field, &rotated, &starts);
-    let best = best_in_blocks(&field, &rotated, &blocks, coarse as i64, w, n_ang as usize);
-    let (score, angle, di, dj) = best;
-    let theta = angles.get(angle).copied().unwrap_or(theta0);
-    let t = initial.translation.vector + Vector2::new(di as f64, dj as f64) * res;
-    Ok(CorrelativeResult {
-        target_from_source: Pose2::new(t, theta),
-        score: score.max(0.0) / source.len() as f64,
-    })
+    let results = sweeps
+        .into_iter()
+        .zip(headings)
+        .map(|((angles, footprints), &theta0)| {
+            let rotated: Vec<Footprint> = footprints
+                .into_iter()
+                .map(|cells| Footprint::new(cells, field.width))
+                .collect();
+            let blocks = bound_blocks(&bound_field, &rotated, &starts);
+            let best = best_in_blocks(&field, &rotated, &blocks, coarse as i64, w, n_ang as usize);
+            let (score, angle, di, dj) = best;
+            let theta = angles.get(angle).copied().unwrap_or(theta0);
+            let t = translation + Vector2::new(di as f64, dj as f64) * res;
+            CorrelativeResult {
+                target_from_source: Pose2::new(t, theta),
+                score: score.max(0.0) / source.len() as f64,
+            }
+        })
+        .collect();
+    Ok(results)
 }
+
+/// The rotations tried from one heading, and the source's lattice cells at each.
+type Sweep = (Vec<f64>, Vec<Vec<(i64, i64)>>);
 
 /// Every block of translations (starting at `starts` in both axes) at every rotation, with its
 /// bound, best bound first.

@@ -14,7 +14,7 @@
 //! for the robot to move somewhere telling.
 
 use crate::cloud::voxel_downsample;
-use crate::correlative::{correlative_match, CorrelativeConfig};
+use crate::correlative::{correlative_match, correlative_match_headings, CorrelativeConfig};
 use crate::error::check_fields;
 use crate::icp::{align, IcpConfig};
 use crate::nn::GridIndex;
@@ -222,12 +222,14 @@ impl GlobalSearch {
                     .filter(|p| (p.coords - centre).norm() < reach)
                     .copied()
                     .collect();
-                let (source, coarse) = (&source, &coarse);
-                (0..sectors).filter_map(move |k| {
-                    let guess = Pose2::new(centre, k as f64 * sector_rad);
-                    let hit = correlative_match(source, &target, &guess, coarse).ok()?;
-                    Some((hit.score, hit.target_from_source))
-                })
+                // One likelihood field for every sector (each heading a pose's own angle).
+                let headings: Vec<f64> = (0..sectors)
+                    .map(|k| Pose2::new(centre, k as f64 * sector_rad).rotation.angle())
+                    .collect();
+                correlative_match_headings(&source, &target, &centre, &headings, &coarse)
+                    .unwrap_or_default()
+                    .into_iter()
+                    .map(|hit| (hit.score, hit.target_from_source))
             })
             .collect();
         coarse_hits.sort_by(|a, b| b.0.total_cmp(&a.0));

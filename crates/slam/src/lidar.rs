@@ -250,8 +250,11 @@ impl LidarSlam {
         if map.keyframes.is_empty() {
             return Err(SlamError::Map("the map holds no keyframe".into()));
         }
+        let start = Instant::now();
         let keyframes = map.matcher_keyframes(&config.icp);
         let search = GlobalSearch::new(&keyframes, config.global_search.clone())?;
+        let mut timings = StageTimings::default();
+        timings.record_since("prepare_map", start);
         let mode = Mode::InMap(Box::new(InMap {
             map,
             keyframes,
@@ -261,7 +264,9 @@ impl LidarSlam {
             since_search: None,
             new_scans: Vec::new(),
         }));
-        Ok(Self::with_mode(config, mode))
+        let mut session = Self::with_mode(config, mode);
+        session.timings = timings;
+        Ok(session)
     }
 
     fn with_mode(config: LidarSlamConfig, mode: Mode) -> Self {

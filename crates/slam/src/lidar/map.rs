@@ -271,13 +271,12 @@ impl LidarMap {
 
     /// The keyframes as the matchers use them: points within `config`'s ranges with normals.
     pub fn matcher_keyframes(&self, config: &IcpSlamConfig) -> Vec<Keyframe> {
-        self.keyframes
+        let scans: Vec<(&LaserScan, Pose2)> = self
+            .keyframes
             .iter()
-            .map(|kf| {
-                let points = config.scan_points(&kf.scan);
-                config.keyframe(points, kf.world_from_base)
-            })
-            .collect()
+            .map(|kf| (&kf.scan, kf.world_from_base))
+            .collect();
+        config.scan_keyframes(&scans)
     }
 
     /// An occupancy grid of every keyframe scan at its pose (free space, hits, no-returns).
