@@ -16,6 +16,8 @@
 //!   (read and written), the signals layered drone SLAM takes besides the scans.
 //! * 2D lidar logs: [`carmen`] (CARMEN `.clf`, plain or gzip: scans with wheel odometry) and
 //!   [`mrpt_text`] (text dumps of MRPT rawlogs and ground-truth files).
+//! * [`time_order`]: timestamps stepping back in a lidar log, counted; a log mostly out of
+//!   order refused.
 //! * [`relations`]: ground-truth relations of the 2D SLAM benchmark (`*.relations`,
 //!   Kümmerle et al. 2009).
 //! * [`ply`]: point clouds as PLY for any viewer.
@@ -36,6 +38,7 @@ pub mod ply;
 pub mod redwood;
 pub mod relations;
 pub mod seven_scenes;
+pub mod time_order;
 pub mod trajectory_file;
 pub mod tum_rgbd;
 pub mod tum_rgbd_writer;
