@@ -4,7 +4,7 @@
 //! A reader lists the frames (timestamps and file paths) up front and checks the metadata;
 //! images are decoded only when a frame is loaded, so a sequence of thousands of frames opens
 //! in milliseconds and a corrupt image costs that frame only (the caller skips and counts it).
-//! Every reader follows one rule for missing images ([`NumberedFiles`], [`trim_to_present`]):
+//! Every reader follows one rule for missing images (`NumberedFiles`, `trim_to_present`):
 //! a frame keeps its own index and time whatever is missing around it, and a missing image is
 //! that frame failing to load, never a shift of later frames against the ground truth.
 //! [`Dataset::observations`] makes a dataset a source of [`Observation`]s like any other (a
