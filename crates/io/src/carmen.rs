@@ -138,17 +138,18 @@ pub enum SkipReason {
 #[non_exhaustive]
 pub enum CarmenError {
     /// The file could not be opened.
-    #[error("{file}: {source}")]
+    #[error("{file}: {error}")]
     Open {
         /// The log file.
         file: String,
-        /// The underlying error.
-        source: std::io::Error,
+        /// The operating system's error (in the message, not a `source()`, so that an error
+        /// chain does not print it twice).
+        error: std::io::Error,
     },
     /// Reading stopped before the end of the file (a gzip stream truncated or corrupted,
     /// a disk error): the log is incomplete, so none of it is returned.
     #[error(
-        "{file}:{line}: the log is damaged or truncated here ({source}); {scans} scans were \
+        "{file}:{line}: the log is damaged or truncated here ({error}); {scans} scans were \
          read before it"
     )]
     Read {
@@ -158,8 +159,8 @@ pub enum CarmenError {
         line: usize,
         /// Scans read before the damage.
         scans: usize,
-        /// The underlying error.
-        source: std::io::Error,
+        /// The reading or decompression error (in the message, not a `source()`).
+        error: std::io::Error,
     },
     /// The scans' timestamps are mostly out of order (a reversed log, swapped parts).
     #[error("{file}: {reason}")]
@@ -183,9 +184,9 @@ pub enum CarmenError {
 
 /// Reads a CARMEN log file, plain or gzip-compressed (told by its magic bytes).
 pub fn read_carmen(path: &Path) -> Result<CarmenLog, CarmenError> {
-    let file = std::fs::File::open(path).map_err(|source| CarmenError::Open {
+    let file = std::fs::File::open(path).map_err(|error| CarmenError::Open {
         file: path.display().to_string(),
-        source,
+        error,
     })?;
     parse_carmen(BufReader::new(file), &path.display().to_string())
 }
@@ -193,11 +194,11 @@ pub fn read_carmen(path: &Path) -> Result<CarmenLog, CarmenError> {
 /// Parses a CARMEN log from `reader`, plain or gzip-compressed (told by its magic bytes);
 /// `origin` names the input in errors.
 pub fn parse_carmen<R: BufRead>(mut reader: R, origin: &str) -> Result<CarmenLog, CarmenError> {
-    let head = reader.fill_buf().map_err(|source| CarmenError::Read {
+    let head = reader.fill_buf().map_err(|error| CarmenError::Read {
         file: origin.to_string(),
         line: 1,
         scans: 0,
-        source,
+        error,
     })?;
     if head.starts_with(&[0x1f, 0x8b]) {
         parse_lines(BufReader::new(MultiGzDecoder::new(reader)), origin)
@@ -232,12 +233,12 @@ fn parse_lines<R: BufRead>(mut reader: R, origin: &str) -> Result<CarmenLog, Car
         match reader.read_until(b'\n', &mut buf) {
             Ok(0) => break,
             Ok(_) => {}
-            Err(source) => {
+            Err(error) => {
                 return Err(CarmenError::Read {
                     file: origin.to_string(),
                     line: line_no,
                     scans: log.scans.len(),
-                    source,
+                    error,
                 })
             }
         }

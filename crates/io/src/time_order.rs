@@ -46,13 +46,13 @@ impl TimeOrder {
     /// ```
     /// use slamkit_io::time_order::TimeOrder;
     /// let mut order = TimeOrder::default();
-    /// for (line, t) in [(1, 0.0), (2, 1.0), (3, 0.5), (4, 2.0)] {
+    /// for (line, t) in (1..).zip([0.0, 1.0, 2.0, 3.0, 2.5, 4.0, 5.0]) {
     ///     order.add(t, line);
     /// }
-    /// assert_eq!((order.steps, order.backward_steps), (3, 1));
-    /// assert_eq!(order.first_backward_line, Some(3));
-    /// assert_eq!((order.backward_s, order.span_s), (0.5, 2.0));
-    /// assert!(!order.is_mostly_out_of_order());
+    /// assert_eq!((order.steps, order.backward_steps), (6, 1));
+    /// assert_eq!(order.first_backward_line, Some(5));
+    /// assert_eq!((order.backward_s, order.span_s), (0.5, 5.0));
+    /// assert!(!order.is_mostly_out_of_order()); // 1 step in 6, 0.5 s of 5 s
     /// ```
     pub fn add(&mut self, t: f64, line: usize) {
         let Some(seen) = &mut self.seen else {

@@ -233,8 +233,7 @@ fn output_grid(
 }
 
 pub(crate) fn read_log(path: &Path) -> anyhow::Result<CarmenLog> {
-    let log = slamkit_io::carmen::read_carmen(path)
-        .with_context(|| format!("reading log {}", path.display()))?;
+    let log = slamkit_io::carmen::read_carmen(path).context("reading log")?;
     if log.scans.is_empty() {
         anyhow::bail!("{} holds no laser scan", path.display());
     }
@@ -323,7 +322,7 @@ pub(crate) fn print_summary(out: &Path, report: &serde_json::Value) {
         f["skipped"],
         f["failed"],
         f["unreadable_lines"],
-        report["wall_seconds"]
+        report["wall_seconds"].as_f64().unwrap_or(f64::NAN)
     );
     let r = &report["metrics"]["relations"];
     if !r.is_null() {
