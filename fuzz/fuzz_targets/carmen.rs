@@ -1,5 +1,6 @@
 //! CARMEN log parser on arbitrary bytes (plain or, when the bytes start with the gzip magic,
-//! compressed): never panics, and whatever it accepts is a usable scan.
+//! compressed): never panics, and whatever it accepts is a usable scan in a log that is not
+//! mostly out of time order (non-finite ranges are kept as beams without a return).
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
@@ -10,10 +11,15 @@ fuzz_target!(|data: &[u8]| {
         return;
     };
     assert!(!log.scans.is_empty());
+    let order = log.time_order;
+    assert_eq!(order.steps, log.scans.len() - 1);
+    assert!(order.backward_steps <= order.steps && !order.is_mostly_out_of_order());
+    assert!(order.backward_s.is_finite() && order.span_s.is_finite(), "{order:?}");
     for scan in &log.scans {
         assert!(scan.timestamp.is_finite());
         assert!(!scan.ranges_m.is_empty());
-        assert!(scan.ranges_m.iter().all(|r| r.is_finite()));
+        let hits = scan.hit_points();
+        assert!(hits.iter().all(|p| p.x.is_finite() && p.y.is_finite()));
         assert!(scan.angle_min_rad.is_finite() && scan.angle_increment_rad.is_finite());
         assert!(scan.angle_increment_rad != 0.0);
         assert!(scan.max_range_m > 0.0 && scan.max_range_m.is_finite());

@@ -150,3 +150,64 @@ fn bad_input_fails_with_a_message() {
         assert!(!out.stderr.is_empty(), "{args:?} should say why");
     }
 }
+
+/// Issue 25 (13): each error is one line that names the file once, without Rust debug
+/// output, and a value out of range says the valid range (negative values included, which
+/// the argument parser used to take for options).
+#[test]
+fn error_messages_are_one_line_naming_the_file_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let gt = dir.path().join("gt.tum");
+    let poses: String = (0..10)
+        .map(|i| format!("{i}.0 {i}.0 0 0 0 0 0 1\n"))
+        .collect();
+    std::fs::write(&gt, poses).unwrap();
+    let g = gt.to_str().unwrap();
+    let missing = dir.path().join("missing.tum");
+    let m = missing.to_str().unwrap();
+    let relations = dir.path().join("missing.relations");
+    let r = relations.to_str().unwrap();
+    for (args, expected) in [
+        (
+            vec!["ate", "--gt", m, "--est", g],
+            format!("error: reading trajectory: {m}: "),
+        ),
+        (
+            vec!["relations", "--relations", r, "--est", g],
+            format!("error: reading relations: {r}: "),
+        ),
+        (
+            vec!["rpe", "--gt", g, "--est", g, "--max-diff", "-1"],
+            "error: --max-diff must be a non-negative number of seconds, got -1".to_string(),
+        ),
+        (
+            vec!["rpe", "--gt", g, "--est", g, "--delta", "-1", "--unit", "m"],
+            "error: computing RPE: invalid RPE delta -1 m: use a finite distance above 0 m"
+                .to_string(),
+        ),
+        (
+            vec!["rpe", "--gt", g, "--est", g, "--delta", "0.5"],
+            "error: computing RPE: invalid RPE delta 0.5 frames: use a whole number of frames, \
+             1 or more"
+                .to_string(),
+        ),
+    ] {
+        let out = Command::new(env!("CARGO_BIN_EXE_slamkit"))
+            .arg("eval")
+            .args(&args)
+            .output()
+            .unwrap();
+        assert!(!out.status.success(), "{args:?} should fail");
+        let stderr = String::from_utf8(out.stderr).unwrap();
+        assert_eq!(stderr.lines().count(), 1, "{args:?}: {stderr}");
+        assert!(stderr.starts_with(&expected), "{args:?}: {stderr}");
+        assert!(
+            !stderr.contains("Os {") && !stderr.contains("Error("),
+            "{stderr}"
+        );
+        for path in [m, r] {
+            assert!(stderr.matches(path).count() <= 1, "{stderr}");
+        }
+        assert!(stderr.matches("No such file").count() <= 1, "{stderr}");
+    }
+}

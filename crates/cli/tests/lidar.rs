@@ -90,18 +90,23 @@ fn broken_scans_are_skipped_and_counted_by_reason() {
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
     let scans = &report["scans"];
-    // 60 scan lines: the NaN one and the truncated one are unreadable, 58 are read.
-    assert_eq!(scans["read"], 58, "{scans}");
+    // 60 scan lines: the truncated one is unreadable, 59 are read; the all-NaN scan is read
+    // (non-finite beams are beams without a return, issue 25 item 6) and skipped as broken.
+    assert_eq!(scans["read"], 59, "{scans}");
     assert_eq!(scans["processed"], 56, "{scans}");
-    assert_eq!(scans["skipped_broken"], 2, "{scans}");
+    assert_eq!(scans["skipped_broken"], 3, "{scans}");
     let reasons = &scans["skipped_broken_reasons"];
     assert_eq!(
-        (&reasons["negative"], &reasons["no_return"]),
-        (&1.into(), &1.into())
+        (
+            &reasons["negative"],
+            &reasons["no_return"],
+            &reasons["non_finite"]
+        ),
+        (&1.into(), &1.into(), &1.into())
     );
-    assert_eq!(scans["unreadable_lines"], 4, "{scans}");
+    assert_eq!(scans["unreadable_lines"], 3, "{scans}");
     let lines = &scans["unreadable_line_reasons"];
-    for reason in ["bad_field", "wrong_field_count", "bad_beams", "garbage"] {
+    for reason in ["wrong_field_count", "bad_beams", "garbage"] {
         assert_eq!(lines[reason], 1, "{reason}: {lines}");
     }
     let trajectory = std::fs::read_to_string(out.join("trajectory.tum")).unwrap();
@@ -110,7 +115,7 @@ fn broken_scans_are_skipped_and_counted_by_reason() {
         .filter(|l| !l.starts_with('#'))
         .map(|l| l.split_whitespace().map(|v| v.parse().unwrap()).collect())
         .collect();
-    assert_eq!(poses.len(), 58, "a pose for every scan read");
+    assert_eq!(poses.len(), 59, "a pose for every scan read");
     let last = poses.last().unwrap();
     // The last scan was taken 59 × 5 cm from the first.
     assert!(

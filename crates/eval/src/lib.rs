@@ -84,7 +84,10 @@ pub enum EvalError {
         name: String,
     },
     /// The RPE delta is not usable.
-    #[error("invalid RPE delta {delta} {unit}: must be positive (a whole number of frames)")]
+    #[error("invalid RPE delta {delta} {unit}: {}", match unit {
+        DeltaUnit::Frames => "use a whole number of frames, 1 or more",
+        DeltaUnit::Metres => "use a finite distance above 0 m",
+    })]
     InvalidDelta {
         /// The delta given.
         delta: f64,

@@ -193,12 +193,50 @@ pub fn pairs_by_path(
     ids.windows(2).map(|w| (w[0], w[1])).collect()
 }
 
+/// evo's all-pairs search by path: for every `i`, the first later pose whose travelled
+/// distance from `i` is nearest to `delta`, kept when it misses by at most `tol`. evo scans every
+/// later pose (O(n²): days for two million poses); the distance from `i` only grows along the
+/// path, so the miss falls to its minimum where `d − dᵢ − Δ` turns non-negative and rises after,
+/// and two binary searches per pose give the same pairs (checked against the scan in the tests)
+/// in O(n log n). A path whose length overflows has no pairs.
 fn all_pairs_by_path(
     positions: &[nalgebra::Vector3<f64>],
     delta: f64,
     tol: f64,
 ) -> Vec<(usize, usize)> {
-    // accumulated distance from the first pose, as evo's geometry.accumulated_distances
+    let travelled = accumulated_distances(positions);
+    if travelled.last().is_some_and(|d| !d.is_finite()) {
+        return Vec::new();
+    }
+    let mut pairs = Vec::new();
+    for (i, &from) in travelled.iter().enumerate() {
+        // computed exactly as evo does, so that ties and rounding pick the same pose
+        let offset = |d: f64| d - from - delta;
+        let later = travelled.get(i + 1..).unwrap_or_default();
+        let k = later.partition_point(|&d| offset(d) < 0.0);
+        // below Δ: the earliest pose with the largest offset under 0 (the first of equal ones)
+        let below = k.checked_sub(1).and_then(|last| {
+            let worst = offset(*later.get(last)?);
+            let first = later.get(..last)?.partition_point(|&d| offset(d) < worst);
+            Some((first, -worst))
+        });
+        let above = later.get(k).map(|&d| (k, offset(d)));
+        let best = match (below, above) {
+            (Some(b), Some(a)) => Some(if a.1 < b.1 { a } else { b }),
+            (b, a) => b.or(a),
+        };
+        if let Some((j, miss)) = best {
+            if miss <= tol {
+                pairs.push((i, i + 1 + j));
+            }
+        }
+    }
+    pairs
+}
+
+/// Distance travelled from the first position to each, as evo's
+/// `geometry.accumulated_distances`.
+fn accumulated_distances(positions: &[nalgebra::Vector3<f64>]) -> Vec<f64> {
     let mut travelled = Vec::with_capacity(positions.len());
     travelled.push(0.0);
     let mut sum = 0.0;
@@ -206,22 +244,7 @@ fn all_pairs_by_path(
         sum += (w[0] - w[1]).norm();
         travelled.push(sum);
     }
-    let mut pairs = Vec::new();
-    for i in 0..travelled.len().saturating_sub(1) {
-        let mut best: Option<(usize, f64)> = None;
-        for (j, d) in travelled.iter().enumerate().skip(i + 1) {
-            let miss = (d - travelled[i] - delta).abs();
-            if best.map_or(true, |(_, b)| miss < b) {
-                best = Some((j, miss));
-            }
-        }
-        if let Some((j, miss)) = best {
-            if miss <= tol {
-                pairs.push((i, j));
-            }
-        }
-    }
-    pairs
+    travelled
 }
 
 #[cfg(test)]
@@ -303,6 +326,60 @@ mod tests {
             };
             let r = rpe(&gt, &est, Pairing::Index, &cfg).unwrap();
             assert!(r.stats.max < 1e-12, "{unit}: {:?}", r.stats);
+        }
+    }
+
+    /// evo's all-pairs search as it is written (every later pose scanned): the reference
+    /// the binary search must match.
+    fn all_pairs_by_path_scan(
+        positions: &[nalgebra::Vector3<f64>],
+        delta: f64,
+        tol: f64,
+    ) -> Vec<(usize, usize)> {
+        let travelled = accumulated_distances(positions);
+        let mut pairs = Vec::new();
+        for i in 0..travelled.len().saturating_sub(1) {
+            let mut best: Option<(usize, f64)> = None;
+            for (j, d) in travelled.iter().enumerate().skip(i + 1) {
+                let miss = (d - travelled[i] - delta).abs();
+                if best.map_or(true, |(_, b)| miss < b) {
+                    best = Some((j, miss));
+                }
+            }
+            if let Some((j, miss)) = best {
+                if miss <= tol {
+                    pairs.push((i, j));
+                }
+            }
+        }
+        pairs
+    }
+
+    /// Seeded random walks with stops (repeated positions), steps on a coarse grid (exact
+    /// ties) and fine ones, against the scan.
+    #[test]
+    fn all_pairs_by_path_matches_evos_scan() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(25);
+        for case in 0..300 {
+            let n = rng.gen_range(0..120);
+            let mut p = Vector3::zeros();
+            let mut positions = Vec::with_capacity(n);
+            for _ in 0..n {
+                match rng.gen_range(0..4) {
+                    0 => {}
+                    1 => p.x += f64::from(rng.gen_range(1..4)) * 0.25,
+                    _ => p += Vector3::new(rng.gen(), rng.gen(), 0.0) * 0.3,
+                }
+                positions.push(p);
+            }
+            let delta = [0.25, 0.5, 1.0, 2.7][case % 4];
+            let tol = delta * [0.0, 0.1, 1.0][case % 3];
+            assert_eq!(
+                all_pairs_by_path(&positions, delta, tol),
+                all_pairs_by_path_scan(&positions, delta, tol),
+                "case {case}"
+            );
         }
     }
 

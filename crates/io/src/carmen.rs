@@ -23,10 +23,17 @@
 //!   by timestamp when the scan's time lies between theirs, else from the nearer in time.
 //!
 //! The file order is kept and never sorted: the Intel log's timestamps step backwards 631 times
-//! while its file order is the physical order. Other message types (`PARAM`, `SYNC`, ...) and
-//! `#` comments are counted and ignored. A broken line (truncated, wrong beam count, NaN,
-//! garbage) is skipped and recorded with its line number; only a file with no readable scan at
-//! all is an error.
+//! while its file order is the physical order. The backward steps are counted
+//! ([`CarmenLog::time_order`]); a log mostly out of order (reversed, halves swapped: see
+//! [`TimeOrder::is_mostly_out_of_order`]) is an error. Other message types (`PARAM`, `SYNC`,
+//! ...) and `#` comments are counted and ignored. A broken line (truncated, wrong beam count,
+//! NaN in a pose or stamp, garbage) is skipped and recorded with its line number. A file that
+//! cannot be read to its end (a gzip stream truncated or corrupted mid-file) is an error naming
+//! the line where reading stopped, never a shorter log that looks complete; so is a file with
+//! no readable scan at all.
+//!
+//! A non-finite range (`inf`, `nan`) is kept as it is: like a negative one it is a beam with no
+//! usable return ([`LaserScan::is_hit`] is false), not a reason to drop the scan.
 //!
 //! "No return" readings: SICK scanners report an overflow code as the range (81.83 m in the
 //! Intel log, 81.91 m in MIT CSAIL, 50.00 m in ACES), while a log's `max_range` field may be a
@@ -36,6 +43,7 @@
 //! largest real reading is 26.x m (threshold 30), ACES' 49.91 m with 50.00 as no return
 //! (threshold 50), MIT CSAIL's 42.40 m with 81.91 as no return (threshold 80).
 
+use crate::time_order::TimeOrder;
 use flate2::bufread::MultiGzDecoder;
 use slamkit_core::pose::wrap_angle;
 use slamkit_core::{LaserScan, Pose2};
@@ -70,6 +78,8 @@ pub struct CarmenLog {
     pub comment_lines: usize,
     /// Number of well-formed lines of message types not read here (`PARAM`, `SYNC`, ...).
     pub other_message_lines: usize,
+    /// How often the scans' timestamps step back in file order.
+    pub time_order: TimeOrder,
 }
 
 /// A line of a log that was skipped, and why.
@@ -118,9 +128,6 @@ pub enum SkipReason {
     /// The beam layout cannot describe a scan (too few beams, zero angular step).
     #[error("bad beam layout: {0}")]
     BadBeams(&'static str),
-    /// Reading the file failed at this line; the rest of the file was not read.
-    #[error("read error, rest of file ignored: {0}")]
-    ReadError(String),
     /// Values are finite but so large that a derived pose overflows.
     #[error("values out of range: {0}")]
     OutOfRange(&'static str),
@@ -131,22 +138,37 @@ pub enum SkipReason {
 #[non_exhaustive]
 pub enum CarmenError {
     /// The file could not be opened.
-    #[error("{file}: {source}")]
+    #[error("{file}: {error}")]
     Open {
         /// The log file.
         file: String,
-        /// The underlying error.
-        source: std::io::Error,
+        /// The operating system's error (in the message, not a `source()`, so that an error
+        /// chain does not print it twice).
+        error: std::io::Error,
     },
-    /// Reading failed before any scan was read (e.g. a corrupt gzip header).
-    #[error("{file}:{line}: read error: {source}")]
+    /// Reading stopped before the end of the file (a gzip stream truncated or corrupted,
+    /// a disk error): the log is incomplete, so none of it is returned.
+    #[error(
+        "{file}:{line}: the log is damaged or truncated here ({error}); {scans} scans were \
+         read before it"
+    )]
     Read {
         /// The log file.
         file: String,
-        /// 1-based line number where reading failed.
+        /// 1-based line number (of the decompressed text) where reading failed.
         line: usize,
-        /// The underlying error.
-        source: std::io::Error,
+        /// Scans read before the damage.
+        scans: usize,
+        /// The reading or decompression error (in the message, not a `source()`).
+        error: std::io::Error,
+    },
+    /// The scans' timestamps are mostly out of order (a reversed log, swapped parts).
+    #[error("{file}: {reason}")]
+    OutOfOrder {
+        /// The log file.
+        file: String,
+        /// How far out of order, and the limit.
+        reason: String,
     },
     /// The file holds no readable laser scan.
     #[error("{file}: no readable laser scan in {lines} lines ({skipped} broken lines skipped)")]
@@ -162,9 +184,9 @@ pub enum CarmenError {
 
 /// Reads a CARMEN log file, plain or gzip-compressed (told by its magic bytes).
 pub fn read_carmen(path: &Path) -> Result<CarmenLog, CarmenError> {
-    let file = std::fs::File::open(path).map_err(|source| CarmenError::Open {
+    let file = std::fs::File::open(path).map_err(|error| CarmenError::Open {
         file: path.display().to_string(),
-        source,
+        error,
     })?;
     parse_carmen(BufReader::new(file), &path.display().to_string())
 }
@@ -172,10 +194,11 @@ pub fn read_carmen(path: &Path) -> Result<CarmenLog, CarmenError> {
 /// Parses a CARMEN log from `reader`, plain or gzip-compressed (told by its magic bytes);
 /// `origin` names the input in errors.
 pub fn parse_carmen<R: BufRead>(mut reader: R, origin: &str) -> Result<CarmenLog, CarmenError> {
-    let head = reader.fill_buf().map_err(|source| CarmenError::Read {
+    let head = reader.fill_buf().map_err(|error| CarmenError::Read {
         file: origin.to_string(),
         line: 1,
-        source,
+        scans: 0,
+        error,
     })?;
     if head.starts_with(&[0x1f, 0x8b]) {
         parse_lines(BufReader::new(MultiGzDecoder::new(reader)), origin)
@@ -210,23 +233,16 @@ fn parse_lines<R: BufRead>(mut reader: R, origin: &str) -> Result<CarmenLog, Car
         match reader.read_until(b'\n', &mut buf) {
             Ok(0) => break,
             Ok(_) => {}
-            Err(source) if log.scans.is_empty() => {
+            Err(error) => {
                 return Err(CarmenError::Read {
                     file: origin.to_string(),
                     line: line_no,
-                    source,
+                    scans: log.scans.len(),
+                    error,
                 })
             }
-            Err(e) => {
-                let reason = SkipReason::ReadError(e.to_string());
-                log.skipped.push(SkippedLine {
-                    line: line_no,
-                    reason,
-                });
-                break;
-            }
         }
-        if let Err(reason) = add_line(&mut log, &mut odometry, &buf) {
+        if let Err(reason) = add_line(&mut log, &mut odometry, &buf, line_no) {
             log.skipped.push(SkippedLine {
                 line: line_no,
                 reason,
@@ -241,14 +257,21 @@ fn parse_lines<R: BufRead>(mut reader: R, origin: &str) -> Result<CarmenLog, Car
             skipped: log.skipped.len(),
         });
     }
+    log.time_order
+        .check()
+        .map_err(|reason| CarmenError::OutOfOrder {
+            file: origin.to_string(),
+            reason,
+        })?;
     Ok(log)
 }
 
-/// Reads one line (without its number) into `log`.
+/// Reads line `line_no` into `log`.
 fn add_line(
     log: &mut CarmenLog,
     odometry: &mut OdometryBracket,
     bytes: &[u8],
+    line_no: usize,
 ) -> Result<(), SkipReason> {
     let text = std::str::from_utf8(bytes)
         .map_err(|_| SkipReason::NotUtf8)?
@@ -261,7 +284,10 @@ fn add_line(
         return Ok(());
     }
     match parse_message(text)? {
-        Message::Scan(scan) => odometry.add_scan(&mut log.scans, scan),
+        Message::Scan(scan) => {
+            log.time_order.add(scan.timestamp, line_no);
+            odometry.add_scan(&mut log.scans, scan);
+        }
         Message::Odom(sample) => {
             log.odometry_lines += 1;
             odometry.add_odom(&mut log.scans, sample);
@@ -332,6 +358,19 @@ impl Fields<'_> {
         (start..start + n).map(|i| self.num(i)).collect()
     }
 
+    /// Fields `start..start + n` as ranges: any number, `inf` and `nan` included (a beam
+    /// without a usable return, like a negative one).
+    pub(crate) fn ranges(&self, start: usize, n: usize) -> Result<Vec<f64>, SkipReason> {
+        (start..start + n)
+            .map(|i| {
+                let token = self.token(i)?;
+                token
+                    .parse::<f64>()
+                    .map_err(|_| bad_field(i, token, "range"))
+            })
+            .collect()
+    }
+
     /// Fails unless the line has exactly `expected` fields.
     pub(crate) fn expect_len(&self, expected: usize) -> Result<(), SkipReason> {
         if self.tokens.len() == expected {
@@ -380,7 +419,7 @@ fn parse_flaser(f: &Fields) -> Result<LaserScan, SkipReason> {
         return Err(SkipReason::BadBeams("FLASER needs at least 2 beams"));
     }
     f.expect_len(field_total(&[n, 11])?)?;
-    let ranges_m = f.nums(2, n)?;
+    let ranges_m = f.ranges(2, n)?;
     let pose = f.nums(2 + n, 6)?;
     Ok(LaserScan {
         timestamp: f.num(8 + n)?,
@@ -420,7 +459,7 @@ fn parse_raw_fields(f: &Fields, trailing_fields: usize) -> Result<RawLaser, Skip
         angle_min_rad: f.num(2)?,
         angle_increment_rad: angular_res,
         max_range_field_m: f.num(5)?,
-        ranges_m: f.nums(9, n)?,
+        ranges_m: f.ranges(9, n)?,
         next_field,
     })
 }
@@ -670,11 +709,11 @@ mod tests {
         let text = [
             "# comment".to_string(),
             good.clone(),
-            good[..good.len() - 10].to_string(),     // truncated
-            good.replace(" 1.00 ", " NaN "),         // NaN range
-            good.replace(" 4 ", " 5 "),              // wrong count
+            good[..good.len() - 10].to_string(), // truncated
+            good.replace(" 1.000000 bag", " NaN bag"), // NaN timestamp
+            good.replace(" 4 ", " 5 "),          // wrong count
             "FLASER 1 2.0 0 0 0 0 0 0 1 h 1".into(), // too few beams
-            "FLASER 99999999999999999999 1".into(),  // count overflow
+            "FLASER 99999999999999999999 1".into(), // count overflow
             "RAWLASER1 0 0 0 0.01 30 0 0 18446744073709551615 1".into(),
             "\u{1}\u{7f}garbage".into(),
             "PARAM robot_width 0.5".into(),
@@ -689,6 +728,51 @@ mod tests {
         let lines: Vec<usize> = log.skipped.iter().map(|s| s.line).collect();
         assert_eq!(lines, vec![3, 4, 5, 6, 7, 8, 9, 11, 12]);
         assert!(matches!(log.skipped[1].reason, SkipReason::BadField { .. }));
+    }
+
+    /// Issue 25 (6): one `inf` beam dropped the whole scan. Non-finite beams are beams
+    /// without a usable return, as negative ones are; the scan is kept.
+    #[test]
+    fn non_finite_beams_are_no_return_not_a_broken_scan() {
+        let line = rawlaser(&[1.0, 2.0, 3.0, 4.0], 1.0)
+            .replace(" 2.00 ", " inf ")
+            .replace(" 3.00 ", " NaN ");
+        let flaser = "FLASER 3 -inf 81.91 2.5 9 9 9 1 2 0.5 100.25 host 0.1";
+        let log = parse(&format!("{line}\n{flaser}")).unwrap();
+        assert!(log.skipped.is_empty(), "{:?}", log.skipped);
+        let s = &log.scans[0];
+        assert!(s.ranges_m[1].is_infinite() && s.ranges_m[2].is_nan());
+        assert_eq!(s.hit_count(), 2);
+        assert_eq!(log.scans[1].hit_count(), 1);
+        // a token that is not a number is still a broken line
+        let log = parse(&format!("{line}\n{}", line.replace(" inf ", " 1.2.3 "))).unwrap();
+        assert_eq!(log.scans.len(), 1);
+        assert!(matches!(
+            log.skipped[0].reason,
+            SkipReason::BadField { what: "range", .. }
+        ));
+    }
+
+    /// Issue 25 (5): stamps stepping back are counted with the first line; a reversed log
+    /// and one with its halves swapped are refused.
+    #[test]
+    fn backward_timestamps_counted_and_disordered_logs_refused() {
+        let mut lines: Vec<String> = (0..40).map(|i| rawlaser(&[1.0; 2], f64::from(i))).collect();
+        lines.swap(10, 11);
+        let log = parse(&lines.join("\n")).unwrap();
+        assert_eq!(log.time_order.backward_steps, 1);
+        assert_eq!(log.time_order.first_backward_line, Some(12));
+        lines.swap(10, 11);
+        lines.reverse();
+        let err = parse(&lines.join("\n")).unwrap_err();
+        assert!(matches!(err, CarmenError::OutOfOrder { .. }), "{err}");
+        lines.reverse();
+        lines.rotate_left(20);
+        let err = parse(&lines.join("\n")).unwrap_err().to_string();
+        assert!(
+            err.contains("step back 1 times") && err.contains("line 21"),
+            "{err}"
+        );
     }
 
     #[test]
@@ -715,23 +799,25 @@ mod tests {
         assert!(matches!(missing, Err(CarmenError::Open { .. })));
     }
 
+    /// Issue 25 (3): a gzip log cut or corrupted mid-file is an error naming the file and
+    /// the line where reading stopped, not a shorter log.
     #[test]
-    fn gzip_detected_by_magic_and_truncation_recorded() {
-        let text = format!(
-            "{}\n{}\n",
-            rawlaser(&[1.0; 3], 1.0),
-            rawlaser(&[2.0; 3], 2.0)
-        );
+    fn gzip_detected_by_magic_and_damage_is_an_error() {
+        let text: String = (0..400)
+            .map(|i| rawlaser(&[1.0 + f64::from(i % 2); 3], f64::from(i)) + "\n")
+            .collect();
         let mut enc = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
-        enc.write_all(text.repeat(200).as_bytes()).unwrap();
+        enc.write_all(text.as_bytes()).unwrap();
         let gz = enc.finish().unwrap();
         let log = parse_carmen(gz.as_slice(), "<gz>").unwrap();
         assert_eq!(log.scans.len(), 400);
         assert!(log.skipped.is_empty());
-        let cut = parse_carmen(&gz[..gz.len() - 20], "<gz>").unwrap();
-        assert!(matches!(
-            cut.skipped.last().unwrap().reason,
-            SkipReason::ReadError(_)
-        ));
+        let cut = parse_carmen(&gz[..gz.len() - 20], "<gz>").unwrap_err();
+        assert!(matches!(cut, CarmenError::Read { .. }), "{cut}");
+        assert!(cut.to_string().starts_with("<gz>:"), "{cut}");
+        let mut flipped = gz.clone();
+        let middle = flipped.len() / 2;
+        flipped[middle] ^= 0xff;
+        assert!(parse_carmen(flipped.as_slice(), "<gz>").is_err());
     }
 }

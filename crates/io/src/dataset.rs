@@ -4,6 +4,9 @@
 //! A reader lists the frames (timestamps and file paths) up front and checks the metadata;
 //! images are decoded only when a frame is loaded, so a sequence of thousands of frames opens
 //! in milliseconds and a corrupt image costs that frame only (the caller skips and counts it).
+//! Every reader follows one rule for missing images (`NumberedFiles`, `trim_to_present`):
+//! a frame keeps its own index and time whatever is missing around it, and a missing image is
+//! that frame failing to load, never a shift of later frames against the ground truth.
 //! [`Dataset::observations`] makes a dataset a source of [`Observation`]s like any other (a
 //! bag, a live camera, the simulator), so a session runs the same on all of them.
 
@@ -303,6 +306,118 @@ pub(crate) fn sorted_files(
     Ok(files)
 }
 
+/// The images of a numbered sequence (`000042.png`, `frame-000042.color.jpg`, `00042.jpg`),
+/// found in a folder, by the number in their name (the first run of digits).
+///
+/// This and [`trim_to_present`] are the one rule every camera dataset reader follows for
+/// missing images: the sequence runs from the first image present to the last, one frame per
+/// number (or listed row); an image missing in between is a frame at its own index whose
+/// loading fails (counted as failed by the caller), never a shift of the frames after it
+/// against the ground truth, and never fatal for the dataset.
+#[derive(Debug, Clone)]
+pub(crate) struct NumberedFiles {
+    dir: PathBuf,
+    /// Name of the first file: the pattern of a missing one's name.
+    template: String,
+    files: std::collections::BTreeMap<u64, PathBuf>,
+}
+
+impl NumberedFiles {
+    /// The files of `paths` whose name holds a number (the first file per number kept).
+    pub(crate) fn new(dir: &Path, paths: Vec<PathBuf>) -> Self {
+        let mut files = std::collections::BTreeMap::new();
+        for path in paths {
+            let number = path
+                .file_name()
+                .and_then(|n| n.to_str())
+                .and_then(|n| digit_run(n).and_then(|r| n[r].parse::<u64>().ok()));
+            if let Some(number) = number {
+                files.entry(number).or_insert(path);
+            }
+        }
+        let template = files
+            .values()
+            .next()
+            .and_then(|p| p.file_name()?.to_str().map(str::to_string))
+            .unwrap_or_default();
+        Self {
+            dir: dir.to_path_buf(),
+            template,
+            files,
+        }
+    }
+
+    /// First and last numbers present.
+    pub(crate) fn range(&self) -> Option<(u64, u64)> {
+        Some((*self.files.keys().next()?, *self.files.keys().next_back()?))
+    }
+
+    /// The file of frame `number`: the one on disk, or the name it would have (the first
+    /// file's name with its number replaced, zero-padded alike).
+    pub(crate) fn path(&self, number: u64) -> PathBuf {
+        if let Some(path) = self.files.get(&number) {
+            return path.clone();
+        }
+        let name = match digit_run(&self.template) {
+            Some(r) => format!(
+                "{}{number:0width$}{}",
+                &self.template[..r.start],
+                &self.template[r.end..],
+                width = r.len()
+            ),
+            None => number.to_string(),
+        };
+        self.dir.join(name)
+    }
+}
+
+/// The frame numbers from the first to the last of `sets` (numbered files of the same
+/// frames: colour and depth, left and right), checked: more missing numbers than images
+/// present is an error naming `dir` (a folder of unrelated numbers, not a sequence with a few
+/// images lost), which also bounds the frame count by the files on disk.
+pub(crate) fn frame_numbers(
+    dir: &Path,
+    sets: &[&NumberedFiles],
+) -> Result<std::ops::RangeInclusive<u64>, IoError> {
+    let ranges = sets.iter().filter_map(|s| s.range());
+    let (Some(first), Some(last)) = (ranges.clone().map(|r| r.0).min(), ranges.map(|r| r.1).max())
+    else {
+        return Err(IoError::invalid(dir.display(), "no numbered image"));
+    };
+    let present = sets.iter().map(|s| s.files.len()).max().unwrap_or(0);
+    let slots = (last - first).saturating_add(1);
+    if slots - present as u64 > present as u64 {
+        let msg = format!(
+            "images numbered {first} to {last}, but only {present} are present: more than \
+             half of the frames would be missing"
+        );
+        return Err(IoError::invalid(dir.display(), msg));
+    }
+    Ok(first..=last)
+}
+
+/// `rows` without the leading and trailing ones whose image is not on disk (`present` false):
+/// trimmed copies of a dataset list every row of the original. Rows in between stay, so a
+/// missing image there is a failed frame at its own index (see [`NumberedFiles`]).
+pub(crate) fn trim_to_present<T>(mut rows: Vec<T>, present: impl Fn(&T) -> bool) -> Vec<T> {
+    let Some(last) = rows.iter().rposition(&present) else {
+        return Vec::new();
+    };
+    rows.truncate(last + 1);
+    let first = rows.iter().position(&present).unwrap_or(0);
+    rows.drain(..first);
+    rows
+}
+
+/// Byte range of the first run of ASCII digits in `name`.
+fn digit_run(name: &str) -> Option<std::ops::Range<usize>> {
+    let start = name.find(|c: char| c.is_ascii_digit())?;
+    let len = name[start..]
+        .find(|c: char| !c.is_ascii_digit())
+        .unwrap_or(name.len() - start);
+    Some(start..start + len)
+}
+
 /// True for file names ending in an extension of `exts` (lower case, without the dot).
 pub(crate) fn has_extension(name: &str, exts: &[&str]) -> bool {
     name.rsplit_once('.')
@@ -334,4 +449,57 @@ pub(crate) fn checked_camera(
         return Err(IoError::invalid(file, "camera: non-finite distortion"));
     }
     Ok(cam)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn numbered(names: &[&str]) -> NumberedFiles {
+        let dir = Path::new("/seq");
+        NumberedFiles::new(dir, names.iter().map(|n| dir.join(n)).collect())
+    }
+
+    #[test]
+    fn missing_numbers_get_the_name_their_file_would_have() {
+        let files = numbered(&["frame-000007.color.jpg", "frame-000009.color.jpg", "notes"]);
+        assert_eq!(files.range(), Some((7, 9)));
+        assert_eq!(
+            files.path(8),
+            Path::new("/seq/frame-000008.color.jpg"),
+            "same padding"
+        );
+        assert_eq!(
+            files.path(1234567),
+            Path::new("/seq/frame-1234567.color.jpg")
+        );
+        let numbers = frame_numbers(Path::new("/seq"), &[&files]).unwrap();
+        assert_eq!(numbers, 7..=9);
+        // left 0..=2, right only 3: the frames of both
+        let (left, right) = (numbered(&["0.png", "1.png", "2.png"]), numbered(&["3.png"]));
+        assert_eq!(
+            frame_numbers(Path::new("/s"), &[&left, &right]).unwrap(),
+            0..=3
+        );
+    }
+
+    #[test]
+    fn sparse_or_absent_numbering_is_an_error() {
+        let sparse = numbered(&["000000.png", "999999.png"]);
+        let err = frame_numbers(Path::new("/seq"), &[&sparse]).unwrap_err();
+        assert!(err.to_string().contains("only 2 are present"), "{err}");
+        let none = numbered(&["a.png"]);
+        assert!(frame_numbers(Path::new("/seq"), &[&none]).is_err());
+        // half missing is still a sequence
+        let half = numbered(&["0.png", "2.png", "4.png"]);
+        assert!(frame_numbers(Path::new("/seq"), &[&half]).is_ok());
+    }
+
+    #[test]
+    fn only_leading_and_trailing_missing_rows_are_trimmed() {
+        let rows = vec![(0, false), (1, true), (2, false), (3, true), (4, false)];
+        let kept: Vec<i32> = trim_to_present(rows, |r| r.1).iter().map(|r| r.0).collect();
+        assert_eq!(kept, [1, 2, 3]);
+        assert!(trim_to_present(vec![false, false], |r| *r).is_empty());
+    }
 }

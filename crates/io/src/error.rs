@@ -1,5 +1,9 @@
 //! The one error type of slamkit-io: every variant names the file, and the line or frame where
 //! that applies, so a user can open the file and see what is wrong.
+//!
+//! Each message is one whole line, the operating system's reason included; so no variant
+//! also hands that reason out as its `source()`, which a caller printing the error chain
+//! would print a second time (`x.tum: No such file…: No such file…`).
 
 use std::path::PathBuf;
 
@@ -8,12 +12,12 @@ use std::path::PathBuf;
 #[non_exhaustive]
 pub enum IoError {
     /// The operating system refused to open, read or write a file.
-    #[error("{}: {source}", path.display())]
+    #[error("{}: {error}", path.display())]
     Io {
         /// The file or folder involved.
         path: PathBuf,
-        /// The underlying error.
-        source: std::io::Error,
+        /// The operating system's error (in the message, not a `source()`).
+        error: std::io::Error,
     },
     /// A line of a text file could not be understood.
     #[error("{file}:{line}: {message}")]
@@ -54,10 +58,10 @@ pub enum IoError {
 
 impl IoError {
     /// Wraps an OS error with the path it concerns.
-    pub(crate) fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+    pub(crate) fn io(path: impl Into<PathBuf>, error: std::io::Error) -> Self {
         Self::Io {
             path: path.into(),
-            source,
+            error,
         }
     }
 
@@ -82,4 +86,28 @@ impl IoError {
 /// Reads a whole text file, naming it on failure.
 pub(crate) fn read_text(path: &std::path::Path) -> Result<String, IoError> {
     std::fs::read_to_string(path).map_err(|e| IoError::io(path, e))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::error::Error;
+
+    /// Issue 25 (13): a missing file's error is one line with the path and the reason once;
+    /// the reason is not also a `source()` that an error chain would print again.
+    #[test]
+    fn missing_file_message_names_path_and_reason_once() {
+        let path = std::path::Path::new("/nonexistent/gt.tum");
+        let err = read_text(path).unwrap_err();
+        assert!(err.source().is_none());
+        let msg = err.to_string();
+        assert!(
+            msg.starts_with("/nonexistent/gt.tum: No such file"),
+            "{msg}"
+        );
+        assert_eq!(msg.matches("gt.tum").count(), 1, "{msg}");
+        let log = crate::carmen::read_carmen(path).unwrap_err();
+        assert!(log.source().is_none());
+        assert_eq!(log.to_string(), msg);
+    }
 }

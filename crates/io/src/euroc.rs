@@ -4,8 +4,10 @@
 //! grayscale) and `sensor.yaml` (`T_BS` = `body_from_camera`, pinhole `intrinsics`
 //! fu fv cu cv, radial-tangential `distortion_coefficients` k1 k2 p1 p2, `resolution`).
 //!
-//! A frame is a cam0 row whose PNG exists and whose timestamp has a cam1 row with a PNG (trimmed
-//! copies list rows without images). Ground truth, when `state_groundtruth_estimate0/data.csv`
+//! A frame is a cam0 row of `data.csv`, from the first row whose PNG exists to the last
+//! (trimmed copies list rows without images); the right image is cam1's row of the same stamp
+//! (`cam1/data/<t_ns>.png` when it has none). A missing image in between is a frame that fails
+//! to load at its own index. Ground truth, when `state_groundtruth_estimate0/data.csv`
 //! exists, is `world_from_body`; it is returned as `world_from_cam0 = world_from_body ·
 //! body_from_cam0`, the pose stereo odometry estimates.
 
@@ -16,7 +18,7 @@ use nalgebra::Matrix3x4;
 use slamkit_core::camera::PinholeCamera;
 use slamkit_core::Pose3;
 
-use crate::dataset::{checked_camera, StereoFrame, StereoSequence};
+use crate::dataset::{checked_camera, trim_to_present, StereoFrame, StereoSequence};
 use crate::error::{read_text, IoError};
 use crate::trajectory_file::{ns_to_s, parse_numbers, pose_from_matrix, read_trajectory};
 
@@ -41,22 +43,24 @@ pub fn open(dir: &Path) -> Result<StereoSequence, IoError> {
     let left_rows = read_image_list(&root.join("cam0"))?;
     let right_rows: HashMap<u64, PathBuf> =
         read_image_list(&root.join("cam1"))?.into_iter().collect();
-    let frames: Vec<StereoFrame> = left_rows
+    let right_of = |ns: u64| {
+        right_rows
+            .get(&ns)
+            .cloned()
+            .unwrap_or_else(|| root.join("cam1/data").join(format!("{ns}.png")))
+    };
+    let frames: Vec<StereoFrame> = trim_to_present(left_rows, |(_, left)| left.is_file())
         .into_iter()
-        .filter_map(|(ns, left)| Some((ns, left, right_rows.get(&ns)?.clone())))
         .enumerate()
-        .map(|(index, (ns, left, right))| StereoFrame {
+        .map(|(index, (ns, left))| StereoFrame {
             index,
             timestamp: ns_to_s(ns),
+            right: right_of(ns),
             left,
-            right,
         })
         .collect();
     if frames.is_empty() {
-        return Err(IoError::invalid(
-            root.display(),
-            "no cam0/cam1 image pair on disk",
-        ));
+        return Err(IoError::invalid(root.display(), "no cam0 image on disk"));
     }
     let gt_path = root.join("state_groundtruth_estimate0/data.csv");
     let ground_truth = if gt_path.exists() {
@@ -79,7 +83,7 @@ pub fn open(dir: &Path) -> Result<StereoSequence, IoError> {
     })
 }
 
-/// Rows of `<cam>/data.csv` whose image exists in `<cam>/data/`: (timestamp \[ns\], path).
+/// Rows of `<cam>/data.csv`: (timestamp \[ns\], path of the image in `<cam>/data/`).
 fn read_image_list(cam_dir: &Path) -> Result<Vec<(u64, PathBuf)>, IoError> {
     let csv = cam_dir.join("data.csv");
     let file = csv.display().to_string();
@@ -99,10 +103,7 @@ fn read_image_list(cam_dir: &Path) -> Result<Vec<(u64, PathBuf)>, IoError> {
         let ns: u64 = ts.trim().parse().map_err(|_| {
             IoError::parse(&file, i + 1, format!("bad timestamp {ts:?} (integer ns)"))
         })?;
-        let path = cam_dir.join("data").join(name.trim());
-        if path.is_file() {
-            rows.push((ns, path));
-        }
+        rows.push((ns, cam_dir.join("data").join(name.trim())));
     }
     Ok(rows)
 }

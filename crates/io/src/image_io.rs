@@ -2,12 +2,15 @@
 //! [`slamkit_core::image::Image`], through the `image` crate.
 //!
 //! Missing, truncated or corrupt files give an [`IoError`] naming the file; none panics.
+//! JPEG is decoded by zune-jpeg (the decoder `image` uses) in strict mode: `image` runs it
+//! lenient, which fills the rest of a truncated or corrupt scan with gray and reports
+//! success, so a damaged frame would be tracked as if it were real.
 //! Depth is kept raw (`u16`, the dataset's own unit) by [`load_depth`]; [`depth_to_metres`]
 //! converts it with the dataset's scale (TUM 5000 units/m, 7-Scenes and Redwood 1000).
 
 use std::path::Path;
 
-use image::{DynamicImage, ImageReader};
+use image::{DynamicImage, ImageFormat, ImageReader};
 use slamkit_core::image::{DepthImage, GrayImage, Image, RgbImage};
 
 use crate::error::IoError;
@@ -79,7 +82,36 @@ fn open(path: &Path) -> Result<ImageReader<std::io::BufReader<std::fs::File>>, I
 }
 
 fn decode(path: &Path) -> Result<DynamicImage, IoError> {
-    open(path)?.decode().map_err(|e| image_error(path, e))
+    let reader = open(path)?;
+    if reader.format() == Some(ImageFormat::Jpeg) {
+        let bytes = std::fs::read(path).map_err(|e| IoError::io(path, e))?;
+        return decode_jpeg_strict(path, &bytes);
+    }
+    reader.decode().map_err(|e| image_error(path, e))
+}
+
+/// A JPEG decoded as 8-bit RGB, failing on a truncated or corrupt scan.
+fn decode_jpeg_strict(path: &Path, bytes: &[u8]) -> Result<DynamicImage, IoError> {
+    use zune_core::{bytestream::ZCursor, colorspace::ColorSpace, options::DecoderOptions};
+    let options = DecoderOptions::default()
+        .set_strict_mode(true)
+        .jpeg_set_out_colorspace(ColorSpace::RGB);
+    let mut decoder = zune_jpeg::JpegDecoder::new_with_options(ZCursor::new(bytes), options);
+    let failed = |message: String| IoError::Image {
+        path: path.to_path_buf(),
+        message: format!("JPEG: {}", message.trim_matches('"')),
+    };
+    let pixels = decoder.decode().map_err(|e| failed(e.to_string()))?;
+    let (w, h) = decoder
+        .dimensions()
+        .ok_or_else(|| failed("no image size".into()))?;
+    let (w, h) = (u32::try_from(w), u32::try_from(h));
+    let (Ok(w), Ok(h)) = (w, h) else {
+        return Err(failed("image too large".into()));
+    };
+    image::RgbImage::from_raw(w, h, pixels)
+        .map(DynamicImage::ImageRgb8)
+        .ok_or_else(|| failed("decoded buffer does not match the image size".into()))
 }
 
 fn image_error(path: &Path, e: image::ImageError) -> IoError {

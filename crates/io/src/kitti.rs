@@ -6,6 +6,10 @@
 //!
 //! After rectification both cameras share K, and `P1 = K [I | (−b, 0, 0)ᵀ]`, so the baseline is
 //! `b = −P1[0,3] / P1[0,0]`.
+//!
+//! Frame `NNNNNN` is stamped from line `NNNNNN` of `times.txt` (or `NNNNNN` × 0.1 s) and
+//! `poses.txt` line `NNNNNN` is its ground truth, so a missing image (left or right) is a frame
+//! that fails to load at its own number, never a shift of the frames after it.
 
 use std::path::Path;
 
@@ -13,7 +17,9 @@ use nalgebra::{Matrix3x4, Translation3};
 use slamkit_core::camera::PinholeCamera;
 use slamkit_core::{Pose3, Trajectory};
 
-use crate::dataset::{camera, has_extension, sorted_files, StereoFrame, StereoSequence};
+use crate::dataset::{
+    camera, frame_numbers, has_extension, sorted_files, NumberedFiles, StereoFrame, StereoSequence,
+};
 use crate::error::{read_text, IoError};
 use crate::image_io::image_size;
 use crate::trajectory_file::{parse_numbers, read_trajectory, TrajectoryFormat};
@@ -116,29 +122,28 @@ fn parse_calib_named(text: &str, file: &str) -> Result<KittiCalib, IoError> {
 pub fn open(dir: &Path) -> Result<StereoSequence, IoError> {
     let calib_path = dir.join("calib.txt");
     let calib = parse_calib_named(&read_text(&calib_path)?, &calib_path.display().to_string())?;
-    let lefts = sorted_files(&dir.join("image_0"), |n| has_extension(n, &["png"]))?;
-    let Some(first) = lefts.first() else {
+    let images = |folder: &str| -> Result<NumberedFiles, IoError> {
+        let dir = dir.join(folder);
+        let files = sorted_files(&dir, |n| has_extension(n, &["png"]))?;
+        Ok(NumberedFiles::new(&dir, files))
+    };
+    let (lefts, rights) = (images("image_0")?, images("image_1")?);
+    let Some((first, _)) = lefts.range() else {
         return Err(IoError::invalid(
             dir.join("image_0").display(),
             "no PNG image",
         ));
     };
-    let (width, height) = image_size(first)?;
-    let times = read_times(dir, lefts.len())?;
-    let mut frames = Vec::with_capacity(lefts.len());
-    for (index, (left, timestamp)) in lefts.into_iter().zip(times).enumerate() {
-        let right = dir
-            .join("image_1")
-            .join(left.file_name().unwrap_or_default());
-        if !right.is_file() {
-            let msg = format!("frame {index}: right image missing");
-            return Err(IoError::invalid(right.display(), msg));
-        }
+    let (width, height) = image_size(&lefts.path(first))?;
+    let numbers = frame_numbers(dir, &[&lefts, &rights])?;
+    let times = read_times(dir, usize::try_from(*numbers.end()).unwrap_or(usize::MAX))?;
+    let mut frames = Vec::new();
+    for (index, number) in numbers.enumerate() {
         frames.push(StereoFrame {
             index,
-            timestamp,
-            left,
-            right,
+            timestamp: times.at(number),
+            left: lefts.path(number),
+            right: rights.path(number),
         });
     }
     let ground_truth = read_poses(dir)?;
@@ -156,12 +161,32 @@ pub fn open(dir: &Path) -> Result<StereoSequence, IoError> {
     })
 }
 
-/// Timestamps of the first `count` frames (and beyond, for poses): `times.txt` when present
-/// (it must cover every frame), else frame index × 0.1 s.
-fn read_times(dir: &Path, count: usize) -> Result<Vec<f64>, IoError> {
+/// Frame times: `times.txt`, or the nominal rate when there is none.
+enum Times {
+    Listed(Vec<f64>),
+    Nominal,
+}
+
+impl Times {
+    /// Time of frame `number` \[s\] (listed times cover every frame read).
+    fn at(&self, number: u64) -> f64 {
+        match self {
+            Self::Listed(times) => usize::try_from(number)
+                .ok()
+                .and_then(|i| times.get(i))
+                .copied()
+                .unwrap_or(f64::NAN),
+            Self::Nominal => number as f64 * NOMINAL_PERIOD_S,
+        }
+    }
+}
+
+/// Times of frames 0 to `last` (and beyond, for poses): `times.txt` when present (it must
+/// cover them all), else frame number × 0.1 s.
+fn read_times(dir: &Path, last: usize) -> Result<Times, IoError> {
     let path = dir.join("times.txt");
     if !path.exists() {
-        return Ok((0..count).map(|i| i as f64 * NOMINAL_PERIOD_S).collect());
+        return Ok(Times::Nominal);
     }
     let file = path.display().to_string();
     let mut times = Vec::new();
@@ -174,11 +199,11 @@ fn read_times(dir: &Path, count: usize) -> Result<Vec<f64>, IoError> {
             _ => return Err(IoError::parse(&file, i + 1, "expected one timestamp")),
         }
     }
-    if times.len() < count {
-        let msg = format!("{} timestamps for {count} frames", times.len());
+    if times.len() <= last {
+        let msg = format!("{} timestamps for frames 0 to {last}", times.len());
         return Err(IoError::invalid(file, msg));
     }
-    Ok(times)
+    Ok(Times::Listed(times))
 }
 
 /// `poses.txt` as a trajectory stamped with `times.txt` (or index × 0.1 s), when present.
@@ -191,9 +216,9 @@ fn read_poses(dir: &Path) -> Result<Option<Trajectory>, IoError> {
     if format != TrajectoryFormat::Kitti {
         return Err(IoError::invalid(path.display(), "not in KITTI 3x4 format"));
     }
-    let times = read_times(dir, traj.len())?;
-    for (pose, t) in traj.poses.iter_mut().zip(times) {
-        pose.timestamp = t;
+    let times = read_times(dir, traj.len().saturating_sub(1))?;
+    for (number, pose) in (0u64..).zip(traj.poses.iter_mut()) {
+        pose.timestamp = times.at(number);
     }
     Ok(Some(traj))
 }

@@ -17,6 +17,8 @@
 //! * 2D lidar logs: [`carmen`] (CARMEN `.clf`, plain or gzip: scans with wheel odometry) and
 //!   [`mrpt_text`] (text dumps of MRPT rawlogs and ground-truth files).
 //! * [`g2o`]: 3D pose graphs in g2o's text format (`VERTEX_SE3:QUAT`, `EDGE_SE3:QUAT`, `FIX`).
+//! * [`time_order`]: timestamps stepping back in a lidar log, counted; a log mostly out of
+//!   order refused.
 //! * [`relations`]: ground-truth relations of the 2D SLAM benchmark (`*.relations`,
 //!   Kümmerle et al. 2009).
 //! * [`ply`]: point clouds as PLY for any viewer.
@@ -39,6 +41,7 @@ pub mod ply;
 pub mod redwood;
 pub mod relations;
 pub mod seven_scenes;
+pub mod time_order;
 pub mod trajectory_file;
 pub mod tum_rgbd;
 pub mod tum_rgbd_writer;

@@ -13,7 +13,9 @@
 //!   and becomes NaN (unknown: neither hit nor free space) otherwise.
 //!
 //! `t` is Unix seconds, 0 when the rawlog stored none. `max_range_m` follows
-//! [`no_return_threshold`]. Broken lines are skipped and recorded, as for CARMEN logs.
+//! [`no_return_threshold`]. Broken lines are skipped and recorded, non-finite ranges kept as
+//! beams without a return, and stamps stepping back counted (a log mostly out of order
+//! refused), as for CARMEN logs.
 //!
 //! The ground-truth file of the simulated rawlog holds `t x y theta` lines: the true robot
 //! pose at each scan time, read as a [`Trajectory`] of planar poses lifted to 3D.
@@ -21,6 +23,7 @@
 use crate::carmen::{field_total, no_return_threshold, Fields, SkipReason, SkippedLine};
 use crate::error::read_text;
 use crate::relations::parse_numbers;
+use crate::time_order::TimeOrder;
 use crate::IoError;
 use slamkit_core::pose::pose2_to_pose3;
 use slamkit_core::{LaserScan, Pose2, Trajectory};
@@ -37,6 +40,8 @@ pub struct MrptLog {
     pub odometry_increments: usize,
     /// Number of `#` comment lines.
     pub comment_lines: usize,
+    /// How often the scans' timestamps step back in file order.
+    pub time_order: TimeOrder,
 }
 
 /// Reads an MRPT rawlog text dump; a file with no readable scan is an error.
@@ -75,7 +80,10 @@ pub fn parse_mrpt_text(text: &str, origin: &str) -> Result<MrptLog, IoError> {
                         Err(SkipReason::OutOfRange("accumulated odometry overflows"))
                     }
                 }),
-            "SCAN" => parse_scan(&fields, odom_from_base).map(|scan| log.scans.push(scan)),
+            "SCAN" => parse_scan(&fields, odom_from_base).map(|scan| {
+                log.time_order.add(scan.timestamp, i + 1);
+                log.scans.push(scan);
+            }),
             _ => Err(SkipReason::Garbage {
                 start: name.chars().take(16).collect(),
             }),
@@ -93,6 +101,9 @@ pub fn parse_mrpt_text(text: &str, origin: &str) -> Result<MrptLog, IoError> {
             what: "MRPT SCAN lines".into(),
         });
     }
+    log.time_order
+        .check()
+        .map_err(|reason| IoError::invalid(origin, reason))?;
     Ok(log)
 }
 
@@ -116,7 +127,7 @@ fn parse_scan(f: &Fields, odometry: Pose2) -> Result<LaserScan, SkipReason> {
         _ => return Err(SkipReason::BadBeams("right_to_left must be 0 or 1")),
     };
     let max_range_m = no_return_threshold(Some(f.num(8)?));
-    let ranges = f.nums(10, n)?;
+    let ranges = f.ranges(10, n)?;
     let valid = f.nums(10 + n, n)?;
     let ranges_m = ranges
         .iter()
@@ -222,6 +233,28 @@ mod tests {
             parse_mrpt_text("# c\n", "<t>"),
             Err(IoError::Empty { .. })
         ));
+    }
+
+    /// Issue 25 (5, 6): non-finite ranges keep the scan; a reversed log is refused and
+    /// steps back in an ordered one are counted.
+    #[test]
+    fn non_finite_ranges_kept_and_reversed_log_refused() {
+        let log = parse_mrpt_text(&SCAN.replace(" 2.0 ", " inf "), "<t>").unwrap();
+        assert!(log.skipped.is_empty());
+        assert!(log.scans[0].ranges_m[2].is_infinite());
+        let scans: Vec<String> = (0..8)
+            .map(|i| SCAN.replace("SCAN 5.5", &format!("SCAN {i}")))
+            .collect();
+        let mut text = scans.join("\n");
+        let log = parse_mrpt_text(&text.replacen("SCAN 3", "SCAN 1.5", 1), "<t>").unwrap();
+        assert_eq!(log.time_order.backward_steps, 1);
+        assert_eq!(log.time_order.first_backward_line, Some(4));
+        text = scans.iter().rev().cloned().collect::<Vec<_>>().join("\n");
+        let err = parse_mrpt_text(&text, "log.txt").unwrap_err().to_string();
+        assert!(
+            err.starts_with("log.txt: log is mostly out of time order"),
+            "{err}"
+        );
     }
 
     /// Regression: increments near f64::MAX made the accumulated odometry infinite.

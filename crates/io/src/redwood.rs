@@ -1,12 +1,13 @@
 //! Open3D / Redwood RGB-D folders (Choi, Zhou and Koltun, "Robust Reconstruction of Indoor
 //! Scenes", CVPR 2015): `color/*.{jpg,png}` and `depth/*.png` (16-bit millimetres, 0 invalid)
-//! paired in name order, optional `trajectory.log` and an optional Open3D camera JSON
+//! paired by the number in their names (a missing one is a frame that fails to load at its
+//! own number), optional `trajectory.log` and an optional Open3D camera JSON
 //! (`camera_primesense.json` or `camera_intrinsic.json`; PrimeSense defaults 525 / 525 /
 //! 319.5 / 239.5 when absent).
 //!
 //! `trajectory.log` holds one block per frame, in frame order: a metadata line of three
 //! integers (`id id n`), then a 4×4 `world_from_camera` matrix on four lines. There are no
-//! timestamps: frame i is stamped i / `frame_rate_hz`.
+//! timestamps: frame (and image number) i is stamped i / `frame_rate_hz`.
 
 use std::path::Path;
 
@@ -15,7 +16,8 @@ use slamkit_core::camera::PinholeCamera;
 use slamkit_core::Trajectory;
 
 use crate::dataset::{
-    camera, checked_camera, has_extension, sorted_files, RgbdFrame, RgbdSequence,
+    camera, checked_camera, frame_numbers, has_extension, sorted_files, NumberedFiles, RgbdFrame,
+    RgbdSequence,
 };
 use crate::error::{read_text, IoError};
 use crate::image_io::image_size;
@@ -51,30 +53,27 @@ pub fn open(dir: &Path, config: &RedwoodConfig) -> Result<RgbdSequence, IoError>
             "frame rate and depth scale must be positive",
         ));
     }
-    let colors = sorted_files(&dir.join("color"), |n| {
-        has_extension(n, &["jpg", "jpeg", "png"])
-    })?;
-    let depths = sorted_files(&dir.join("depth"), |n| has_extension(n, &["png"]))?;
-    let Some(first_depth) = depths.first() else {
+    let numbered = |folder: &str, exts: &[&str]| -> Result<NumberedFiles, IoError> {
+        let dir = dir.join(folder);
+        let files = sorted_files(&dir, |n| has_extension(n, exts))?;
+        Ok(NumberedFiles::new(&dir, files))
+    };
+    let colors = numbered("color", &["jpg", "jpeg", "png"])?;
+    let depths = numbered("depth", &["png"])?;
+    let Some((first_depth, _)) = depths.range() else {
         return Err(IoError::invalid(
             dir.join("depth").display(),
-            "no depth image",
+            "no numbered depth image",
         ));
     };
-    if colors.len() != depths.len() {
-        let msg = format!("{} colour and {} depth images", colors.len(), depths.len());
-        return Err(IoError::invalid(dir.display(), msg));
-    }
-    let size = image_size(first_depth)?;
-    let frames: Vec<RgbdFrame> = colors
-        .into_iter()
-        .zip(depths)
+    let size = image_size(&depths.path(first_depth))?;
+    let frames: Vec<RgbdFrame> = frame_numbers(dir, &[&colors, &depths])?
         .enumerate()
-        .map(|(index, (color, depth))| RgbdFrame {
+        .map(|(index, number)| RgbdFrame {
             index,
-            timestamp: index as f64 / config.frame_rate_hz,
-            color,
-            depth,
+            timestamp: number as f64 / config.frame_rate_hz,
+            color: colors.path(number),
+            depth: depths.path(number),
         })
         .collect();
     let log = dir.join("trajectory.log");

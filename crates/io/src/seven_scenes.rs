@@ -9,12 +9,14 @@
 //! (|R Rᵀ − I| up to 4e−4) and are re-orthonormalised by SVD. Colour and depth come from two
 //! unregistered Kinect cameras; the poses and intrinsics are the depth camera's.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use slamkit_core::camera::PinholeCamera;
 use slamkit_core::Trajectory;
 
-use crate::dataset::{camera, checked_camera, sorted_files, RgbdFrame, RgbdSequence};
+use crate::dataset::{
+    camera, checked_camera, frame_numbers, sorted_files, NumberedFiles, RgbdFrame, RgbdSequence,
+};
 use crate::error::{read_text, IoError};
 use crate::image_io::image_size;
 use crate::trajectory_file::{parse_numbers, pose_from_rows};
@@ -26,44 +28,45 @@ const DEPTH_UNITS_PER_METRE: f64 = 1000.0;
 /// Raw depth marking "no depth" in the original dataset (3DMatch copies use 0).
 const INVALID_DEPTH: u16 = 65535;
 
-/// Opens a 7-Scenes sequence folder. Every colour image needs its depth image; frames
-/// without a `.pose.txt` simply have no ground truth.
+/// Opens a 7-Scenes sequence folder. Frames run from the first numbered colour or depth
+/// image to the last; one missing (colour or depth) is a frame that fails to load at its own
+/// number. Frames without a `.pose.txt` simply have no ground truth.
 pub fn open(dir: &Path) -> Result<RgbdSequence, IoError> {
-    let mut colors: Vec<(u64, String, PathBuf)> = sorted_files(dir, |n| frame_number(n).is_some())?
-        .into_iter()
-        .filter_map(|path| {
-            let name = path.file_name()?.to_str()?;
-            let (number, stem) = frame_number(name)?;
-            Some((number, stem.to_string(), path.clone()))
-        })
-        .collect();
-    colors.sort_by_key(|c| c.0);
-    colors.dedup_by_key(|c| c.0);
-    let mut frames = Vec::with_capacity(colors.len());
+    let numbered = |kind: &str| -> Result<NumberedFiles, IoError> {
+        let files = sorted_files(dir, |n| frame_number(n).is_some_and(|f| f.1 == kind))?;
+        Ok(NumberedFiles::new(dir, files))
+    };
+    let (colors, depths) = (numbered("color")?, numbered("depth")?);
+    if colors.range().is_none() {
+        return Err(IoError::invalid(
+            dir.display(),
+            "no frame-NNNNNN.color.{png,jpg} file",
+        ));
+    }
+    let mut frames = Vec::new();
     let mut gt = Trajectory::new();
-    for (index, (number, stem, color)) in colors.into_iter().enumerate() {
+    for (index, number) in frame_numbers(dir, &[&colors, &depths])?.enumerate() {
         let timestamp = number as f64 / FRAME_RATE_HZ;
-        let depth = dir.join(format!("{stem}.depth.png"));
-        if !depth.is_file() {
-            let msg = format!("frame {number}: depth image missing");
-            return Err(IoError::invalid(depth.display(), msg));
-        }
-        let pose_path = dir.join(format!("{stem}.pose.txt"));
+        let depth = depths.path(number);
+        let pose_path = depth.with_file_name(
+            depth
+                .file_name()
+                .and_then(|n| n.to_str())
+                .unwrap_or_default()
+                .replace(".depth.png", ".pose.txt"),
+        );
         if pose_path.is_file() {
             gt.push(timestamp, read_pose(&pose_path)?);
         }
         frames.push(RgbdFrame {
             index,
             timestamp,
-            color,
+            color: colors.path(number),
             depth,
         });
     }
-    let Some(first) = frames.first() else {
-        return Err(IoError::invalid(
-            dir.display(),
-            "no frame-NNNNNN.color.{png,jpg} file",
-        ));
+    let Some(first) = frames.iter().find(|f| f.depth.is_file()) else {
+        return Err(IoError::invalid(dir.display(), "no depth image"));
     };
     let size = image_size(&first.depth)?;
     let k = read_intrinsics(&dir.join("camera-intrinsics.txt"), size)?;
@@ -78,16 +81,22 @@ pub fn open(dir: &Path) -> Result<RgbdSequence, IoError> {
     })
 }
 
-/// For `frame-NNNNNN.color.png|jpg`: the number and the stem `frame-NNNNNN`.
-fn frame_number(name: &str) -> Option<(u64, &str)> {
-    let stem = name
-        .strip_suffix(".color.png")
-        .or_else(|| name.strip_suffix(".color.jpg"))?;
+/// For `frame-NNNNNN.color.png|jpg` and `frame-NNNNNN.depth.png`: the number and the kind
+/// (`color` or `depth`).
+fn frame_number(name: &str) -> Option<(u64, &'static str)> {
+    let (stem, kind) = if let Some(stem) = name.strip_suffix(".depth.png") {
+        (stem, "depth")
+    } else {
+        let stem = name
+            .strip_suffix(".color.png")
+            .or_else(|| name.strip_suffix(".color.jpg"))?;
+        (stem, "color")
+    };
     let digits = stem.strip_prefix("frame-")?;
     if digits.is_empty() || !digits.bytes().all(|b| b.is_ascii_digit()) {
         return None;
     }
-    Some((digits.parse().ok()?, stem))
+    Some((digits.parse().ok()?, kind))
 }
 
 /// Reads a `.pose.txt`: four lines of four numbers, `world_from_camera`.
@@ -131,12 +140,10 @@ mod tests {
 
     #[test]
     fn frame_names_are_recognised() {
-        assert_eq!(
-            frame_number("frame-000123.color.jpg"),
-            Some((123, "frame-000123"))
-        );
-        assert_eq!(frame_number("frame-7.color.png"), Some((7, "frame-7")));
-        assert_eq!(frame_number("frame-000123.depth.png"), None);
+        assert_eq!(frame_number("frame-000123.color.jpg"), Some((123, "color")));
+        assert_eq!(frame_number("frame-7.color.png"), Some((7, "color")));
+        assert_eq!(frame_number("frame-000123.depth.png"), Some((123, "depth")));
+        assert_eq!(frame_number("frame-000123.pose.txt"), None);
         assert_eq!(frame_number("frame-.color.png"), None);
         assert_eq!(frame_number("frame-1a.color.png"), None);
         assert_eq!(

@@ -12,7 +12,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 use slamkit_core::camera::PinholeCamera;
 
-use crate::dataset::{camera, RgbdFrame, RgbdSequence};
+use crate::dataset::{camera, trim_to_present, RgbdFrame, RgbdSequence};
 use crate::error::{read_text, IoError};
 use crate::trajectory_file::read_trajectory;
 
@@ -102,25 +102,34 @@ impl TumCamera {
 }
 
 /// Opens a TUM RGB-D folder: pairs colour and depth frames, reads `groundtruth.txt` when
-/// present.
+/// present. Frames run from the first pair with an image on disk to the last; a listed image
+/// missing in between is a frame that fails to load at its own index.
 pub fn open(dir: &Path, config: &TumRgbdConfig) -> Result<RgbdSequence, IoError> {
     let rgb = parse_file_list(&dir.join("rgb.txt"))?;
     let depth = parse_file_list(&dir.join("depth.txt"))?;
-    let frames = associate(&rgb, &depth, config.max_time_diff_s)
-        .into_iter()
-        .enumerate()
-        .map(|(index, (c, d))| RgbdFrame {
-            index,
-            timestamp: c.0,
-            color: dir.join(&c.1),
-            depth: dir.join(&d.1),
-        })
-        .collect::<Vec<_>>();
-    if frames.is_empty() {
+    let pairs = associate(&rgb, &depth, config.max_time_diff_s);
+    if pairs.is_empty() {
         return Err(IoError::invalid(
             dir.display(),
             format!("no colour/depth pair within {} s", config.max_time_diff_s),
         ));
+    }
+    let listed = pairs.len();
+    let frames: Vec<RgbdFrame> = trim_to_present(pairs, |(c, d)| {
+        dir.join(&c.1).is_file() || dir.join(&d.1).is_file()
+    })
+    .into_iter()
+    .enumerate()
+    .map(|(index, (c, d))| RgbdFrame {
+        index,
+        timestamp: c.0,
+        color: dir.join(&c.1),
+        depth: dir.join(&d.1),
+    })
+    .collect();
+    if frames.is_empty() {
+        let msg = format!("none of the images of the {listed} listed frames is on disk");
+        return Err(IoError::invalid(dir.display(), msg));
     }
     let gt_path = dir.join("groundtruth.txt");
     let ground_truth = if gt_path.exists() {

@@ -570,11 +570,15 @@ fn broken_kitti_folders() {
     ] {
         gray_png(dir, rel);
     }
-    let err = error_text(kitti::open(dir));
-    assert!(err.contains("frame 1") && err.contains("image_1"), "{err}");
+    // a missing right image is a frame that fails to load, not a broken dataset
+    let seq = kitti::open(dir).unwrap();
+    assert_eq!(seq.frames.len(), 2);
+    let err = error_text(seq.load(&seq.frames[1]));
+    assert!(err.contains("image_1/000001.png"), "{err}");
     gray_png(dir, "image_1/000001.png");
     write(dir, "times.txt", "0.0\n");
-    assert!(error_text(kitti::open(dir)).contains("1 timestamps for 2 frames"));
+    let err = error_text(kitti::open(dir));
+    assert!(err.contains("1 timestamps for frames 0 to 1"), "{err}");
     write(dir, "times.txt", "0.0\nx\n");
     let (file, line) = parse_error(kitti::open(dir));
     assert!(file.ends_with("times.txt") && line == 2);
@@ -615,11 +619,9 @@ fn broken_seven_scenes_folders() {
     depth_png(dir, "frame-000005.depth.png", 65535);
     write(dir, "frame-000005.pose.txt", pose);
     gray_png(dir, "frame-000006.color.png");
-    let err = error_text(seven_scenes::open(dir));
-    assert!(
-        err.contains("frame 6") && err.contains("frame-000006.depth.png"),
-        "{err}"
-    );
+    let seq = seven_scenes::open(dir).unwrap();
+    let err = error_text(seq.load(&seq.frames[1]));
+    assert!(err.contains("frame-000006.depth.png"), "{err}");
     depth_png(dir, "frame-000006.depth.png", 1500);
     write(
         dir,
@@ -655,7 +657,10 @@ fn broken_redwood_folders() {
     gray_png(dir, "color/00001.png");
     depth_png(dir, "depth/00000.png", 1000);
     let redwood = |d: &Path| slamkit_io::redwood::open(d, &Default::default());
-    assert!(error_text(redwood(dir)).contains("2 colour and 1 depth"));
+    let seq = redwood(dir).unwrap();
+    assert_eq!(seq.frames.len(), 2);
+    let err = error_text(seq.load(&seq.frames[1]));
+    assert!(err.contains("depth/00001.png"), "{err}");
     depth_png(dir, "depth/00001.png", 1000);
     write(
         dir,
@@ -712,7 +717,7 @@ fn broken_euroc_folders() {
         "mav0/cam1/data.csv",
         "1000000000,a.png\n1500000000,b.png\n",
     );
-    assert!(error_text(slamkit_io::euroc::open(dir)).contains("no cam0/cam1 image pair"));
+    assert!(error_text(slamkit_io::euroc::open(dir)).contains("no cam0 image on disk"));
     for rel in [
         "mav0/cam0/data/a.png",
         "mav0/cam0/data/b.png",
@@ -721,8 +726,14 @@ fn broken_euroc_folders() {
         gray_png(dir, rel);
     }
     let seq = slamkit_io::euroc::open(dir).unwrap();
-    assert_eq!(seq.frames.len(), 1, "b.png has no right image");
+    assert_eq!(
+        seq.frames.len(),
+        2,
+        "b.png's missing right image fails at load"
+    );
     assert_eq!(seq.frames[0].timestamp, 1.0);
+    let err = error_text(seq.load(&seq.frames[1]));
+    assert!(err.contains("cam1/data/b.png"), "{err}");
     assert!((seq.baseline_m() - 0.1).abs() < 1e-12);
 }
 

@@ -80,6 +80,10 @@ fn intel_log_keeps_file_order_and_matches_relations() {
         .iter()
         .all(|s| s.ranges_m.len() == 180 && s.odometry.is_some()));
     assert_eq!(backward_steps(&log.scans), 631);
+    // the reader's own count, shown in reports; file order kept
+    assert_eq!(log.time_order.backward_steps, 631);
+    assert_eq!(log.time_order.steps, 13630);
+    assert!(!log.time_order.is_mostly_out_of_order());
     let first = &log.scans[0];
     assert!((first.beam_angle_rad(0) + 90f64.to_radians()).abs() < 1e-6);
     // the log writes the 1° step rounded to 6 decimals (0.017453)

@@ -2,6 +2,10 @@
 //! over one frame (Sturm et al., IROS 2012, via `slamkit_eval`), and the end-point drift as a
 //! percentage of the travelled path, the estimate moved to start at the ground truth's pose of
 //! its first frame (a session starts wherever it is told, identity by default).
+//!
+//! Only estimated poses with ground truth are scored; how many had none is reported
+//! ([`VoMetrics::frames_without_ground_truth`]), and the end point is the last *scored* pose, so
+//! ground truth shorter than the sequence cannot turn into a meaningless drift figure.
 
 use nalgebra::Point3;
 use serde::Serialize;
@@ -22,6 +26,10 @@ pub struct VoMetrics {
     pub path_length_m: f64,
     /// `end_point_error_m` as a percentage of `path_length_m`.
     pub end_point_drift_percent: f64,
+    /// Estimated poses paired with a ground-truth pose, and so scored.
+    pub scored_frames: usize,
+    /// Estimated poses without a ground-truth pose within the pairing tolerance, not scored.
+    pub frames_without_ground_truth: usize,
 }
 
 /// Scores `estimate` against `ground_truth`, pairing poses by time stamp.
@@ -36,20 +44,23 @@ pub fn evaluate(estimate: &Trajectory, ground_truth: &Trajectory) -> Result<VoMe
         estimate: estimate.len(),
         reference: ground_truth.len(),
     };
-    let first = *associate(ground_truth, estimate, pairing)?
-        .first()
-        .ok_or_else(no_pairs)?;
-    let (Some(gt_start), Some(est_start)) = (
+    let pairs = associate(ground_truth, estimate, pairing)?;
+    let (Some(first), Some(last)) = (pairs.first(), pairs.last()) else {
+        return Err(no_pairs());
+    };
+    let (Some(gt_start), Some(est_start), Some(gt_end), Some(est_end)) = (
         ground_truth.poses.get(first.reference),
         estimate.poses.get(first.estimate),
+        ground_truth.poses.get(last.reference),
+        estimate.poses.get(last.estimate),
     ) else {
         return Err(no_pairs());
     };
     let anchored = gt_start.pose * est_start.pose.inverse();
-    let (Some(est_end), Some(gt_end)) = (estimate.poses.last(), ate.reference_positions.last())
-    else {
-        return Err(no_pairs());
-    };
+    let gt_end = Point3::from(gt_end.pose.translation.vector);
+    let mut scored: Vec<usize> = pairs.iter().map(|p| p.estimate).collect();
+    scored.sort_unstable();
+    scored.dedup();
     let path: f64 = ate
         .reference_positions
         .windows(2)
@@ -66,5 +77,37 @@ pub fn evaluate(estimate: &Trajectory, ground_truth: &Trajectory) -> Result<VoMe
         } else {
             f64::NAN
         },
+        scored_frames: scored.len(),
+        frames_without_ground_truth: estimate.len().saturating_sub(scored.len()),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use slamkit_core::Pose3;
+
+    /// Issue 25 (9): ground truth for the first 20 of 40 frames; the estimate is exact there
+    /// and wanders off after. Only the 20 are scored, and the end point is the 20th.
+    #[test]
+    fn ground_truth_shorter_than_the_estimate_scores_only_its_frames() {
+        let (mut gt, mut est) = (Trajectory::new(), Trajectory::new());
+        for i in 0..40 {
+            let t = f64::from(i) * 0.1;
+            let truth = Pose3::translation(f64::from(i) * 0.1, 0.02 * f64::from(i % 3), 0.0);
+            if i < 20 {
+                gt.push(t, truth);
+                est.push(t, truth);
+            } else {
+                est.push(t, Pose3::translation(5.0, f64::from(i), 0.0));
+            }
+        }
+        let m = evaluate(&est, &gt).unwrap();
+        assert_eq!((m.scored_frames, m.frames_without_ground_truth), (20, 20));
+        assert!(m.end_point_error_m < 1e-9, "{}", m.end_point_error_m);
+        assert!(m.ate.rmse < 1e-9 && m.end_point_drift_percent < 1e-6);
+        // every frame with ground truth: nothing left out
+        let m = evaluate(&gt, &gt).unwrap();
+        assert_eq!((m.scored_frames, m.frames_without_ground_truth), (20, 0));
+    }
 }

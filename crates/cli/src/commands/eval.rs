@@ -6,6 +6,7 @@
 
 use anyhow::Context;
 use clap::builder::{PossibleValuesParser, TypedValueParser};
+use indicatif::ProgressBar;
 use slamkit_core::Trajectory;
 use slamkit_eval::plot::{plot_errors, ErrorSeries, TopView};
 use slamkit_eval::{
@@ -14,6 +15,7 @@ use slamkit_eval::{
 };
 use slamkit_io::{read_trajectory, TrajectoryFormat};
 use std::path::{Path, PathBuf};
+use std::time::Duration;
 
 /// Arguments of `slamkit eval`.
 #[derive(Debug, clap::Args)]
@@ -44,7 +46,7 @@ pub struct PairArgs {
     #[arg(long)]
     pub est: PathBuf,
     /// Largest time difference for pairing poses by timestamp in seconds (evo's --t_max_diff).
-    #[arg(long, default_value_t = DEFAULT_MAX_DIFF_S)]
+    #[arg(long, default_value_t = DEFAULT_MAX_DIFF_S, allow_negative_numbers = true)]
     pub max_diff: f64,
     /// Print one JSON object instead of a table.
     #[arg(long)]
@@ -69,8 +71,8 @@ pub struct AteArgs {
 pub struct RpeArgs {
     #[command(flatten)]
     pub input: PairArgs,
-    /// Distance between the poses of a pair, in --unit.
-    #[arg(long, default_value_t = 1.0)]
+    /// Distance between the poses of a pair, in --unit (frames: a whole number, 1 or more).
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     pub delta: f64,
     /// Unit of --delta: associated frames or metres of travelled path.
     #[arg(long, default_value = "frames", value_parser = unit_parser())]
@@ -115,8 +117,11 @@ pub fn run(args: &EvalArgs) -> anyhow::Result<()> {
 }
 
 fn run_ate(args: &AteArgs) -> anyhow::Result<()> {
-    let (gt, est, pairing) = load_pair(&args.input)?;
+    let stage = stage_spinner();
+    let (gt, est, pairing) = load_pair(&args.input, &stage)?;
+    stage.set_message(format!("ATE: pairing and aligning {} poses", est.len()));
     let result = ate(&gt, &est, pairing, args.align).context("computing ATE")?;
+    stage.finish_and_clear();
     let title = format!("ATE ({} alignment)", args.align);
     let series = ErrorSeries {
         title: &title,
@@ -128,7 +133,13 @@ fn run_ate(args: &AteArgs) -> anyhow::Result<()> {
 }
 
 fn run_rpe(args: &RpeArgs) -> anyhow::Result<()> {
-    let (gt, est, pairing) = load_pair(&args.input)?;
+    let stage = stage_spinner();
+    let (gt, est, pairing) = load_pair(&args.input, &stage)?;
+    stage.set_message(format!(
+        "RPE: pairing {} poses{}",
+        est.len(),
+        if args.all_pairs { ", all pairs" } else { "" }
+    ));
     let config = RpeConfig {
         delta: args.delta,
         unit: args.unit,
@@ -136,6 +147,7 @@ fn run_rpe(args: &RpeArgs) -> anyhow::Result<()> {
         ..RpeConfig::default()
     };
     let result = rpe(&gt, &est, pairing, &config).context("computing RPE")?;
+    stage.finish_and_clear();
     let title = format!(
         "RPE (delta {} {}{})",
         args.delta,
@@ -201,8 +213,9 @@ fn run_relations(args: &RelationsArgs) -> anyhow::Result<()> {
 
 /// Reads a `.relations` file into the metric's ground-truth type.
 pub fn load_relations(path: &Path) -> anyhow::Result<Vec<GroundTruthRelation>> {
+    // The reader's error names the file; the context says only what was being read.
     Ok(slamkit_io::relations::read_relations(path)
-        .with_context(|| format!("reading relations {}", path.display()))?
+        .context("reading relations")?
         .into_iter()
         .map(|r| GroundTruthRelation {
             t1: r.t1,
@@ -213,18 +226,33 @@ pub fn load_relations(path: &Path) -> anyhow::Result<Vec<GroundTruthRelation>> {
 }
 
 fn read(path: &Path) -> anyhow::Result<(Trajectory, TrajectoryFormat)> {
-    read_trajectory(path).with_context(|| format!("reading trajectory {}", path.display()))
+    // The reader's error names the file; the context says only what was being read.
+    read_trajectory(path).context("reading trajectory")
+}
+
+/// A spinner on stderr naming the stage under way, so that an evaluation of millions of poses
+/// (two million: about 6 s, mostly reading) is seen working; hidden when stderr is not a
+/// terminal.
+fn stage_spinner() -> ProgressBar {
+    let spinner = ProgressBar::new_spinner();
+    spinner.enable_steady_tick(Duration::from_millis(200));
+    spinner
 }
 
 /// Reads ground truth and estimate and chooses how to pair them.
-fn load_pair(args: &PairArgs) -> anyhow::Result<(Trajectory, Trajectory, Pairing)> {
+fn load_pair(
+    args: &PairArgs,
+    stage: &ProgressBar,
+) -> anyhow::Result<(Trajectory, Trajectory, Pairing)> {
     if !(args.max_diff.is_finite() && args.max_diff >= 0.0) {
         anyhow::bail!(
             "--max-diff must be a non-negative number of seconds, got {}",
             args.max_diff
         );
     }
+    stage.set_message(format!("reading {}", args.gt.display()));
     let (gt, gt_format) = read(&args.gt)?;
+    stage.set_message(format!("reading {}", args.est.display()));
     let (est, est_format) = read(&args.est)?;
     let pairing = if gt_format == TrajectoryFormat::Kitti || est_format == TrajectoryFormat::Kitti {
         Pairing::Index

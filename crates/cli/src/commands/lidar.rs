@@ -275,10 +275,12 @@ fn output_grid(
 }
 
 pub(crate) fn read_log(path: &Path) -> anyhow::Result<CarmenLog> {
-    let log = slamkit_io::carmen::read_carmen(path)
-        .with_context(|| format!("reading log {}", path.display()))?;
+    let log = slamkit_io::carmen::read_carmen(path).context("reading log")?;
     if log.scans.is_empty() {
         anyhow::bail!("{} holds no laser scan", path.display());
+    }
+    if let Some(steps_back) = log.time_order.describe() {
+        eprintln!("warning: {}: {steps_back}", path.display());
     }
     Ok(log)
 }
@@ -301,6 +303,7 @@ fn scan_counts(log: &CarmenLog, session: &LidarSlam) -> serde_json::Value {
         "skipped_broken_reasons": broken,
         "unreadable_lines": log.skipped.len(),
         "unreadable_line_reasons": unreadable,
+        "time_order": log.time_order,
     })
 }
 
@@ -312,7 +315,6 @@ fn skip_reason_key(reason: &SkipReason) -> &'static str {
         SkipReason::FieldCount { .. } => "wrong_field_count",
         SkipReason::BadField { .. } => "bad_field",
         SkipReason::BadBeams(_) => "bad_beams",
-        SkipReason::ReadError(_) => "read_error",
         SkipReason::OutOfRange(_) => "out_of_range",
         _ => "other",
     }
@@ -361,8 +363,14 @@ pub(crate) fn relations_metrics(
 pub(crate) fn print_summary(out: &Path, report: &serde_json::Value) {
     let f = &report["frames"];
     println!(
-        "scans: {} read, {} processed, {} skipped, {} failed matches; {:.1} s",
-        f["read"], f["processed"], f["skipped"], f["failed"], report["wall_seconds"]
+        "scans: {} read, {} processed, {} skipped, {} failed matches, {} unreadable log lines; \
+         {:.1} s",
+        f["read"],
+        f["processed"],
+        f["skipped"],
+        f["failed"],
+        f["unreadable_lines"],
+        report["wall_seconds"].as_f64().unwrap_or(f64::NAN)
     );
     let r = &report["metrics"]["relations"];
     if !r.is_null() {

@@ -231,6 +231,12 @@ fn print_summary(out: &Path, report: &serde_json::Value) {
             m["end_point_drift_percent"].as_f64().unwrap_or(f64::NAN),
             m["path_length_m"].as_f64().unwrap_or(f64::NAN)
         );
+        if m["frames_without_ground_truth"].as_u64().unwrap_or(0) > 0 {
+            println!(
+                "scored {} posed frames; {} without ground truth were not scored",
+                m["scored_frames"], m["frames_without_ground_truth"]
+            );
+        }
     }
     println!("outputs in {}", out.display());
 }

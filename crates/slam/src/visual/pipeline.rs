@@ -63,8 +63,10 @@ pub struct FrameRecord {
 /// What a run produced besides the session's state.
 #[derive(Debug)]
 pub struct VisualRun {
-    /// One pose per frame the session answered, `world_from_camera` of the rig's reference
-    /// camera.
+    /// One pose per frame the session initialised on or tracked, `world_from_camera` of the
+    /// rig's reference camera. A failed frame (unreadable, or one odometry could not track)
+    /// has none, so scoring skips it rather than counting the pose held over it; its status
+    /// is in `frames`.
     pub trajectory: Trajectory,
     /// Per-frame outcomes, in order.
     pub frames: Vec<FrameRecord>,
@@ -118,7 +120,8 @@ where
         let mut frames = Vec::new();
         for prepared in &rx_prepared {
             if let Some(u) = session.track(prepared) {
-                if let Some(pose) = u.update.pose {
+                let tracked = !matches!(u.frame, FrameStatus::Failed(_));
+                if let Some(pose) = u.update.pose.filter(|_| tracked) {
                     trajectory.push(u.update.timestamp, pose);
                 }
                 progress(&u);
