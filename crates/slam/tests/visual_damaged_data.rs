@@ -8,6 +8,7 @@
 use std::path::Path;
 
 use slamkit_io::{Dataset, DatasetFormat};
+use slamkit_slam::profile::Profile;
 use slamkit_slam::visual::{self, RunOptions, VisualRun, VisualSlam};
 use slamkit_vo::{evaluate, FrameStatus, FrontendKind, VoConfig, VoMetrics};
 
@@ -40,7 +41,16 @@ fn copy_with(root: &Path, to: &Path, change: &dyn Fn(&str) -> Option<Option<Vec<
 
 fn run(dir: &Path) -> (VisualRun, Dataset) {
     let dataset = Dataset::open(dir, DatasetFormat::Kitti).unwrap();
-    let config = VoConfig::stereo_preset(FrontendKind::Klt);
+    let config = Profile::builtin("stereo")
+        .unwrap()
+        .apply(
+            "vo",
+            VoConfig {
+                frontend: FrontendKind::Klt,
+                ..VoConfig::default()
+            },
+        )
+        .unwrap();
     let mut session = VisualSlam::new(&config, visual::rig_of(&dataset)).unwrap();
     let result = visual::run(
         &mut session,
