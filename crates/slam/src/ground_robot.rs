@@ -47,7 +47,7 @@ pub const TRACKER_LOOKAHEAD_M: f64 = 0.3;
 /// Basic (what a new robot needs): `robot_radius_m`, `safety_margin_m`, `grid` (its
 /// `resolution_m`, the obstacle band `min_height_m` / `max_height_m` above the floor, the
 /// depth `max_range_m` it maps), `vo` (the camera's
-/// settings, see [`VoConfig`](slamkit_vo::VoConfig)). The rest is advanced.
+/// settings, see [`VoConfig`]). The rest is advanced.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct GroundRobotNavConfig {
