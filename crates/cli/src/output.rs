@@ -31,10 +31,21 @@ impl std::error::Error for Unsuccessful {}
 /// Exit code of an [`Unsuccessful`] run.
 pub const UNSUCCESSFUL_EXIT: u8 = 3;
 
-/// Creates the output folder (and its parents) and returns its path.
+/// Creates the output folder (and its parents) and checks that files can be written in it,
+/// so a run does not fail at its end for want of a place to put its results.
 pub fn prepare_out_dir(dir: &Path) -> anyhow::Result<PathBuf> {
+    anyhow::ensure!(
+        !dir.exists() || dir.is_dir(),
+        "output folder {} is a file",
+        dir.display()
+    );
     std::fs::create_dir_all(dir)
         .with_context(|| format!("creating output folder {}", dir.display()))?;
+    let probe = dir.join(".slamkit-write-check");
+    std::fs::write(&probe, b"")
+        .with_context(|| format!("output folder {} is not writable", dir.display()))?;
+    std::fs::remove_file(&probe)
+        .with_context(|| format!("output folder {} is not writable", dir.display()))?;
     Ok(dir.to_path_buf())
 }
 
@@ -58,11 +69,18 @@ pub fn peak_rss_bytes() -> Option<u64> {
     Some(kib * 1024)
 }
 
-/// Writes `report` as pretty JSON to `dir/report.json`.
+/// Writes `report` as pretty JSON to `dir/report.json`, atomically (a reader sees the old
+/// report or the whole new one). A report whose `metrics.error` is set (scoring failed) is
+/// written, then returned as the run's error.
 pub fn write_report(dir: &Path, report: &serde_json::Value) -> anyhow::Result<()> {
     let path = dir.join("report.json");
     let text = serde_json::to_string_pretty(report).context("serialising report")?;
-    std::fs::write(&path, text + "\n").with_context(|| format!("writing {}", path.display()))
+    slamkit_slam::map_file::write_atomically(&path, (text + "\n").as_bytes())
+        .with_context(|| format!("writing {}", path.display()))?;
+    if let Some(error) = report["metrics"]["error"].as_str() {
+        anyhow::bail!("{error} (the rest of the run is in {})", path.display());
+    }
+    Ok(())
 }
 
 /// The per-stage timing summary as JSON: `{stage: {median_ms, p95_ms, total_ms, count}}`.

@@ -194,3 +194,52 @@ fn localisation_that_never_converges_exits_with_3() {
     assert!(stderr.contains("never found"), "{stderr}");
     assert!(out.join("report.json").exists());
 }
+
+/// Checks before the run (issue 25 item 12): an output folder that is a file and a missing
+/// `--relations` fail at once; relations that cannot be scored leave a report.json that says
+/// why, and the run fails.
+#[test]
+fn outputs_and_relations_are_checked_and_the_report_is_always_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("room.clf");
+    std::fs::write(&log, corrupted_log()).unwrap();
+    let lidar = |extra: &[&str], out: &Path| {
+        Command::new(env!("CARGO_BIN_EXE_slamkit"))
+            .arg("lidar")
+            .arg(&log)
+            .args(extra)
+            .arg("--out")
+            .arg(out)
+            .output()
+            .unwrap()
+    };
+    let file = dir.path().join("a-file");
+    std::fs::write(&file, "x").unwrap();
+    let run = lidar(&[], &file);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("is a file"), "{stderr}");
+
+    let out = dir.path().join("out");
+    let missing = dir.path().join("missing.relations");
+    let run = lidar(&["--relations", missing.to_str().unwrap()], &out);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("missing.relations"), "{stderr}");
+    assert!(!out.exists(), "nothing run, nothing written");
+
+    // one relation between times the log never reaches
+    let far = dir.path().join("far.relations");
+    std::fs::write(&far, "5000.0 5001.0 1.0 0.0 0.0 0.0 0.0 0.0\n").unwrap();
+    let run = lidar(&["--relations", far.to_str().unwrap()], &out);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(1), "{stderr}");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let error = report["metrics"]["error"].as_str().unwrap_or_default();
+    assert!(
+        !error.is_empty() && stderr.contains(error),
+        "{report}\n{stderr}"
+    );
+    assert!(out.join("trajectory.tum").exists());
+}

@@ -6,7 +6,8 @@
 use crate::commands::eval::load_relations;
 use crate::commands::{lidar_drone, lidar_mcl};
 use crate::output::{
-    peak_rss_bytes, prepare_out_dir, progress_bar, timings_json, write_report, Unsuccessful,
+    error_chain, peak_rss_bytes, prepare_out_dir, progress_bar, timings_json, write_report,
+    Unsuccessful,
 };
 use crate::settings::{settings, with_file};
 use anyhow::Context;
@@ -89,6 +90,7 @@ pub struct LidarArgs {
 
 /// Runs `slamkit lidar`.
 pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
+    check_relations(args)?;
     if let Some(ranges) = &args.ranges {
         anyhow::ensure!(
             args.localize.is_none() && args.continue_map.is_none(),
@@ -346,6 +348,8 @@ fn relations_path(args: &LidarArgs) -> Option<PathBuf> {
 }
 
 /// The relations metric of `trajectory` (JSON), or null when no relations file is known.
+/// The relations metric of `trajectory` for report.json; when scoring fails, the error in
+/// `error` ([`write_report`] writes the report, then fails with it).
 pub(crate) fn relations_metrics(
     args: &LidarArgs,
     trajectory: &Trajectory,
@@ -353,10 +357,22 @@ pub(crate) fn relations_metrics(
     let Some(path) = relations_path(args) else {
         return Ok(json!(null));
     };
-    let relations = load_relations(&path)?;
-    let stats = slamkit_eval::relations_error(&relations, trajectory)
-        .with_context(|| format!("scoring against {}", path.display()))?;
-    Ok(json!({ "relations_file": path, "relations": stats }))
+    let scored = load_relations(&path).and_then(|relations| {
+        slamkit_eval::relations_error(&relations, trajectory)
+            .with_context(|| format!("scoring against {}", path.display()))
+    });
+    Ok(match scored {
+        Ok(stats) => json!({ "relations_file": path, "relations": stats }),
+        Err(e) => json!({ "relations_file": path, "error": error_chain(&e) }),
+    })
+}
+
+/// An explicit `--relations` file is read before the run, so a wrong path fails at once.
+fn check_relations(args: &LidarArgs) -> anyhow::Result<()> {
+    if let Some(path) = &args.relations {
+        load_relations(path)?;
+    }
+    Ok(())
 }
 
 /// Prints the frame counts, wall time and relations metric of `report`.
