@@ -133,6 +133,27 @@ pub enum SkipReason {
     OutOfRange(&'static str),
 }
 
+impl SkipReason {
+    /// A short name for the reason, the same for every line it applies to (for counting
+    /// skipped lines by reason in a report).
+    ///
+    /// ```
+    /// use slamkit_io::carmen::SkipReason;
+    ///
+    /// assert_eq!(SkipReason::BadBeams("no beams").key(), "bad_beams");
+    /// ```
+    pub fn key(&self) -> &'static str {
+        match self {
+            Self::NotUtf8 => "not_utf8",
+            Self::Garbage { .. } => "garbage",
+            Self::FieldCount { .. } => "wrong_field_count",
+            Self::BadField { .. } => "bad_field",
+            Self::BadBeams(_) => "bad_beams",
+            Self::OutOfRange(_) => "out_of_range",
+        }
+    }
+}
+
 /// A CARMEN log that cannot be read at all.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]

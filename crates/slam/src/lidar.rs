@@ -362,6 +362,25 @@ impl LidarSlam {
         trajectory
     }
 
+    /// The occupancy grid that shows the session's map, given every scan it was pushed in
+    /// order: the saved map's when localising (it is not changed), the particle filter's best
+    /// map, or every scan at its estimated pose (ICP-SLAM, continuation).
+    pub fn output_grid(&self, scans: &[LaserScan]) -> Result<OccupancyGrid, SlamError> {
+        if let Mode::InMap(in_map) = &self.mode {
+            if !in_map.extend {
+                return in_map.map.grid(OccupancyGridConfig::default());
+            }
+        }
+        if let Some(grid) = self.particle_grid() {
+            return Ok(grid.clone());
+        }
+        let posed = scans
+            .iter()
+            .zip(self.poses())
+            .filter_map(|(scan, pose)| Some((scan, pose?)));
+        grid_of_scans(posed, OccupancyGridConfig::default())
+    }
+
     /// The particle filter's best map, when the session runs one.
     pub fn particle_grid(&self) -> Option<&OccupancyGrid> {
         match &self.mode {

@@ -15,10 +15,10 @@ use serde::de::DeserializeOwned;
 use serde::Serialize;
 use serde_json::json;
 use slamkit_core::{Pose2, Trajectory};
-use slamkit_io::carmen::{CarmenLog, SkipReason};
+use slamkit_io::carmen::CarmenLog;
 use slamkit_lidar::icp_slam::IcpSlamConfig;
-use slamkit_map::{save_map_yaml, save_png, OccupancyGrid, OccupancyGridConfig};
-use slamkit_slam::lidar::{grid_of_scans, LidarMap};
+use slamkit_map::{save_map_yaml, save_png};
+use slamkit_slam::lidar::LidarMap;
 use slamkit_slam::{LidarMethod, LidarSlam, LidarSlamConfig};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -145,7 +145,7 @@ pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
         let path = out.join("trajectory_map.tum");
         slamkit_io::trajectory_file::write_tum(&path, &session.map().trajectory())?;
     }
-    let grid = output_grid(&session, &log, args.localize.is_some())?;
+    let grid = session.output_grid(&log.scans)?;
     save_map_yaml(&grid, &out.join("map.yaml"))?;
     save_png(&grid, &out.join("map.png"))?;
     let map_file = session.map_file()?;
@@ -255,27 +255,6 @@ fn session_config(args: &LidarArgs) -> anyhow::Result<LidarSlamConfig> {
     Ok(config)
 }
 
-/// The grid written as map.pgm/png: the saved map's in localisation (it is not changed), the
-/// particle filter's best map, or every scan at its estimated pose.
-fn output_grid(
-    session: &LidarSlam,
-    log: &CarmenLog,
-    localising: bool,
-) -> anyhow::Result<OccupancyGrid> {
-    if localising {
-        return Ok(session.map().grid(OccupancyGridConfig::default())?);
-    }
-    if let Some(grid) = session.particle_grid() {
-        return Ok(grid.clone());
-    }
-    let posed = log
-        .scans
-        .iter()
-        .zip(session.poses())
-        .filter_map(|(scan, pose)| Some((scan, pose?)));
-    Ok(grid_of_scans(posed, OccupancyGridConfig::default())?)
-}
-
 pub(crate) fn read_log(path: &Path) -> anyhow::Result<CarmenLog> {
     let log = slamkit_io::carmen::read_carmen(path).context("reading log")?;
     if log.scans.is_empty() {
@@ -292,7 +271,7 @@ pub(crate) fn read_log(path: &Path) -> anyhow::Result<CarmenLog> {
 fn scan_counts(log: &CarmenLog, session: &LidarSlam) -> serde_json::Value {
     let mut unreadable: BTreeMap<&str, usize> = BTreeMap::new();
     for line in &log.skipped {
-        *unreadable.entry(skip_reason_key(&line.reason)).or_default() += 1;
+        *unreadable.entry(line.reason.key()).or_default() += 1;
     }
     let broken = &session.method_stats()["skipped_broken"];
     let total: u64 = broken.as_object().map_or(0, |reasons| {
@@ -307,19 +286,6 @@ fn scan_counts(log: &CarmenLog, session: &LidarSlam) -> serde_json::Value {
         "unreadable_line_reasons": unreadable,
         "time_order": log.time_order,
     })
-}
-
-/// A short name for why the reader skipped a line.
-fn skip_reason_key(reason: &SkipReason) -> &'static str {
-    match reason {
-        SkipReason::NotUtf8 => "not_utf8",
-        SkipReason::Garbage { .. } => "garbage",
-        SkipReason::FieldCount { .. } => "wrong_field_count",
-        SkipReason::BadField { .. } => "bad_field",
-        SkipReason::BadBeams(_) => "bad_beams",
-        SkipReason::OutOfRange(_) => "out_of_range",
-        _ => "other",
-    }
 }
 
 /// A method's settings: its defaults, the profile's `[section]`, the `--config` file.

@@ -3,7 +3,6 @@
 
 use crate::output::prepare_out_dir;
 use anyhow::Context;
-use nalgebra::Point3;
 use serde_json::json;
 use slamkit_map::{save_map_yaml, save_png, OccupancyGridConfig};
 use slamkit_slam::lidar::LidarMap;
@@ -129,18 +128,7 @@ fn export(file: &Path, out: &Path) -> anyhow::Result<()> {
             let grid = lidar.grid(OccupancyGridConfig::default())?;
             save_map_yaml(&grid, &out.join("map.yaml"))?;
             save_png(&grid, &out.join("map.png"))?;
-            let cloud: Vec<Point3<f64>> = lidar
-                .keyframes
-                .iter()
-                .flat_map(|kf| {
-                    let world_from_laser = kf.world_from_base * kf.scan.base_from_laser;
-                    kf.scan
-                        .hit_points()
-                        .into_iter()
-                        .map(move |p| world_from_laser * p)
-                })
-                .map(|p| Point3::new(p.x, p.y, 0.0))
-                .collect();
+            let cloud = lidar.cloud();
             let comment = format!("slamkit map export of {}", file.display());
             slamkit_io::ply::write_ply(&out.join("cloud.ply"), &cloud, &comment)?;
             slamkit_io::trajectory_file::write_tum(

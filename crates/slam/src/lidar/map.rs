@@ -16,7 +16,7 @@
 use crate::map_file::codec::{Reader, Writer};
 use crate::map_file::{MapFile, MapFileError, MapHeader, Rig, Section};
 use crate::SlamError;
-use nalgebra::{Matrix3, Vector2};
+use nalgebra::{Matrix3, Point3, Vector2};
 use slamkit_core::{LaserScan, Pose2, Trajectory};
 use slamkit_lidar::icp_slam::IcpSlamConfig;
 use slamkit_lidar::point_map::Keyframe;
@@ -253,6 +253,21 @@ impl LidarMap {
             edges,
             scans,
         })
+    }
+
+    /// The keyframes' beam end points in the map frame, at height 0 (a point cloud of the map).
+    pub fn cloud(&self) -> Vec<Point3<f64>> {
+        self.keyframes
+            .iter()
+            .flat_map(|kf| {
+                let world_from_laser = kf.world_from_base * kf.scan.base_from_laser;
+                kf.scan
+                    .hit_points()
+                    .into_iter()
+                    .map(move |p| world_from_laser * p)
+            })
+            .map(|p| Point3::new(p.x, p.y, 0.0))
+            .collect()
     }
 
     /// Every scan of the runs that built the map at its current pose (following its keyframe).
