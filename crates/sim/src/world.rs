@@ -154,8 +154,10 @@ impl World {
             return World::builtin(name_or_path);
         }
         let path = Path::new(name_or_path);
+        // A name that looks like a file is a missing file, not an unknown built-in world.
+        let looks_like_file = name_or_path.ends_with(".toml") || name_or_path.contains('/');
         let text = std::fs::read_to_string(path).map_err(|e| match e.kind() {
-            std::io::ErrorKind::NotFound => SimError::UnknownWorld {
+            std::io::ErrorKind::NotFound if !looks_like_file => SimError::UnknownWorld {
                 name: name_or_path.to_string(),
             },
             _ => SimError::Parse {
@@ -168,9 +170,19 @@ impl World {
 
     /// Parses and validates a world; `origin` names it in errors.
     pub fn from_toml(text: &str, origin: &str) -> Result<World, SimError> {
-        let world: World = toml::from_str(text).map_err(|e| SimError::Parse {
-            world: origin.to_string(),
-            message: e.to_string(),
+        let world: World = toml::from_str(text).map_err(|e| {
+            // one line: where and what, not the parser's multi-line excerpt
+            let line = e.span().map_or(String::new(), |span| {
+                let line = text[..span.start.min(text.len())].matches('\n').count() + 1;
+                format!("line {line}: ")
+            });
+            SimError::Parse {
+                world: origin.to_string(),
+                message: format!(
+                    "{line}{}",
+                    e.message().split_whitespace().collect::<Vec<_>>().join(" ")
+                ),
+            }
         })?;
         world.validate().map_err(|what| SimError::InvalidWorld {
             world: origin.to_string(),
@@ -320,9 +332,18 @@ mod tests {
         );
         let outside = MINIMAL.replace("[3.0, 2.0]", "[5.0, 2.0]");
         assert!(World::from_toml(&outside, "t").is_err());
-        assert!(World::from_toml("garbage = [", "t").is_err());
+        let err = World::from_toml("garbage = [", "t")
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("line 1") && !err.contains('\n'), "{err}");
+        let err = World::by_name_or_file("/nonexistent/world.toml").unwrap_err();
+        assert!(
+            err.to_string().contains("/nonexistent/world.toml")
+                && err.to_string().contains("No such file"),
+            "{err}"
+        );
         assert!(matches!(
-            World::by_name_or_file("/nonexistent/world.toml"),
+            World::by_name_or_file("nowhere"),
             Err(SimError::UnknownWorld { .. })
         ));
     }
