@@ -33,6 +33,18 @@ fn score(
     Ok((evaluate(&result.trajectory, gt)?, failed))
 }
 
+/// The `stereo` profile's settings for `frontend`, as `slamkit vo` takes them for KITTI.
+fn stereo(frontend: FrontendKind) -> VoConfig {
+    let base = VoConfig {
+        frontend,
+        ..VoConfig::default()
+    };
+    Profile::builtin("stereo")
+        .unwrap()
+        .apply("vo", base)
+        .unwrap()
+}
+
 #[test]
 fn kitti_06_clip_klt_frame_to_frame() {
     let Some(dir) = data(
@@ -41,16 +53,7 @@ fn kitti_06_clip_klt_frame_to_frame() {
     ) else {
         return;
     };
-    let config = Profile::builtin("stereo")
-        .unwrap()
-        .apply(
-            "vo",
-            VoConfig {
-                frontend: FrontendKind::Klt,
-                ..VoConfig::default()
-            },
-        )
-        .unwrap();
+    let config = stereo(FrontendKind::Klt);
     let (m, failed) = score(&dir, DatasetFormat::Kitti, &config).unwrap();
     eprintln!(
         "KITTI 06 KLT: ATE {:.4} m, drift {:.2} %, {failed} failed",
@@ -74,16 +77,7 @@ fn kitti_06_clip_orb_frame_to_frame() {
     ) else {
         return;
     };
-    let config = Profile::builtin("stereo")
-        .unwrap()
-        .apply(
-            "vo",
-            VoConfig {
-                frontend: FrontendKind::Orb,
-                ..VoConfig::default()
-            },
-        )
-        .unwrap();
+    let config = stereo(FrontendKind::Orb);
     let (m, failed) = score(&dir, DatasetFormat::Kitti, &config).unwrap();
     eprintln!(
         "KITTI 06 ORB: ATE {:.4} m, drift {:.2} %, {failed} failed",
