@@ -118,6 +118,20 @@ fn check_seed(seed: u64) {
         "per-layer maps"
     );
     assert!(dir.path().join("rec/map.skmap").exists());
+    // the saved layers export as a grid, a cloud with a height per layer, keyframe poses
+    slamkit(&["map", "export", "rec/map.skmap", "--out", "export"], dir.path());
+    let export = dir.path().join("export");
+    for file in ["map.pgm", "map.yaml", "map.png", "trajectory.tum"] {
+        assert!(export.join(file).exists(), "exported {file}");
+    }
+    let ply = std::fs::read_to_string(export.join("cloud.ply")).unwrap();
+    let heights: std::collections::BTreeSet<String> = ply
+        .lines()
+        .skip_while(|l| *l != "end_header")
+        .skip(1)
+        .filter_map(|l| l.split_whitespace().nth(2).map(str::to_string))
+        .collect();
+    assert!(heights.len() > 3, "layer heights in the cloud: {heights:?}");
     let (layered, pf) = demo_trajectories(seed);
     assert_same("layered", &out.join("trajectory.tum"), &layered);
     assert_same("particle filter", &out.join("trajectory_pf.tum"), &pf);

@@ -12,6 +12,7 @@
 
 use crate::error::MapFileError;
 use crate::occupancy_grid::{CellBounds, CellIndex, Occupancy, OccupancyGrid, OccupancyGridConfig};
+use crate::tri_grid::TriGrid;
 use nalgebra::Point2;
 use std::path::{Path, PathBuf};
 
@@ -96,15 +97,54 @@ pub fn trinary_image(grid: &OccupancyGrid) -> TrinaryImage {
     }
 }
 
+/// Renders a whole tri-state grid as a trinary image.
+///
+/// ```
+/// use nalgebra::Point2;
+/// use slamkit_map::grid_io::tri_grid_image;
+/// use slamkit_map::{Occupancy, TriGrid};
+/// let mut grid = TriGrid::new(2, 2, 0.1, Point2::new(1.0, 2.0), Occupancy::Free).unwrap();
+/// grid.set(0, 1, Occupancy::Occupied); // the top-left pixel: images start at the top row
+/// let image = tri_grid_image(&grid);
+/// assert_eq!(image.pixels, [0, 254, 254, 254]);
+/// assert_eq!(image.origin_m, Point2::new(1.0, 2.0));
+/// ```
+pub fn tri_grid_image(grid: &TriGrid) -> TrinaryImage {
+    let width = grid.width();
+    let mut pixels = Vec::with_capacity(grid.cells().len());
+    for row in grid.cells().chunks(width.max(1)).rev() {
+        pixels.extend(row.iter().map(|cell| match cell {
+            Occupancy::Occupied => OCCUPIED_PIXEL,
+            Occupancy::Free => FREE_PIXEL,
+            Occupancy::Unknown => UNKNOWN_PIXEL,
+        }));
+    }
+    TrinaryImage {
+        width: width as u32,
+        height: grid.height() as u32,
+        pixels,
+        origin_m: grid.origin_m(),
+    }
+}
+
 /// Writes `grid` as `map_server` YAML at `yaml_path` plus a PGM image beside it with the same
 /// stem (`map.yaml` → `map.pgm`).
 pub fn save_map_yaml(grid: &OccupancyGrid, yaml_path: &Path) -> Result<(), MapFileError> {
+    save_image_yaml(&trinary_image(grid), grid.resolution_m(), yaml_path)
+}
+
+/// Writes a trinary image of cells of `resolution_m` as `map_server` YAML at `yaml_path` plus
+/// the PGM image beside it with the same stem.
+pub fn save_image_yaml(
+    image: &TrinaryImage,
+    resolution_m: f64,
+    yaml_path: &Path,
+) -> Result<(), MapFileError> {
     let pgm_path = yaml_path.with_extension("pgm");
-    let image = trinary_image(grid);
-    write_file(&pgm_path, &pgm_bytes(&image))?;
+    write_file(&pgm_path, &pgm_bytes(image))?;
     let yaml = MapYaml {
         image: PathBuf::from(pgm_path.file_name().unwrap_or_default()),
-        resolution_m: grid.resolution_m(),
+        resolution_m,
         origin: [image.origin_m.x, image.origin_m.y, 0.0],
         negate: false,
         occupied_thresh: 0.65,
@@ -115,7 +155,11 @@ pub fn save_map_yaml(grid: &OccupancyGrid, yaml_path: &Path) -> Result<(), MapFi
 
 /// Writes `grid` as a trinary PNG image.
 pub fn save_png(grid: &OccupancyGrid, png_path: &Path) -> Result<(), MapFileError> {
-    let image = trinary_image(grid);
+    save_image_png(trinary_image(grid), png_path)
+}
+
+/// Writes a trinary image as a PNG image.
+pub fn save_image_png(image: TrinaryImage, png_path: &Path) -> Result<(), MapFileError> {
     let img_err = |source| MapFileError::Image {
         path: png_path.to_path_buf(),
         source,

@@ -23,6 +23,9 @@ pub enum SlamError {
     /// A map algorithm refused its input or configuration.
     #[error(transparent)]
     Grid(#[from] slamkit_map::MapError),
+    /// A grid file (`map_server` YAML and image, PNG) could not be read or written.
+    #[error(transparent)]
+    GridFile(#[from] slamkit_map::MapFileError),
     /// Visual odometry refused its configuration.
     #[error(transparent)]
     Vo(#[from] slamkit_vo::VoError),

@@ -15,6 +15,7 @@
 
 pub mod closed_loop;
 pub mod floor_mapping;
+pub mod map;
 
 pub use floor_mapping::{map_from_world, CameraStats, FrameOutcome, MountedCamera};
 
@@ -31,8 +32,11 @@ use slamkit_nav::{
 use slamkit_vo::VoConfig;
 use std::time::Instant;
 
+use crate::map_file::{self, MapFile, MapFileError};
+use crate::session::{Session, Update};
 use crate::SlamError;
 use floor_mapping::FloorMapping;
+use std::path::Path;
 
 /// The floor grid covers the rectangle around the start and the goal widened by this \[m\].
 pub const MAP_MARGIN_M: f64 = 10.0;
@@ -139,7 +143,7 @@ impl GroundRobotNavConfig {
 /// let goal = Point2::new(11.5, 5.0);
 /// let mut nav = GroundRobotNav::new(&GroundRobotNavConfig::default(), camera, &start, goal)?;
 /// let frame = robot.rgbd_frame(0, 0.0);
-/// let outcome = nav.push(Observation::Rgbd(frame)).ok_or("an RGB-D frame is used")?;
+/// let outcome = nav.process(Observation::Rgbd(frame)).ok_or("an RGB-D frame is used")?;
 /// // the first frame is at the known start; its depth is mapped and the first plan made
 /// let pose = outcome.world_from_base.ok_or("no pose")?;
 /// assert!((pose.translation.vector - robot.truth().translation.vector).norm() < 1e-9);
@@ -205,8 +209,9 @@ impl GroundRobotNav {
     }
 
     /// Takes one observation: an RGB-D frame localises the robot, maps its depth and, when
-    /// due, re-plans; anything else is ignored (`None`).
-    pub fn push(&mut self, observation: Observation) -> Option<FrameOutcome> {
+    /// due, re-plans; anything else is ignored (`None`). [`Session::push`] gives the same
+    /// frame's [`Update`] alone.
+    pub fn process(&mut self, observation: Observation) -> Option<FrameOutcome> {
         let Observation::Rgbd(frame) = observation else {
             return None;
         };
@@ -259,6 +264,22 @@ impl GroundRobotNav {
         &self.timings
     }
 
+    /// The map as a map file: the camera's keyframes ([`crate::visual::keyframes`]) and the
+    /// floor grid ([`map`]), rig RGB-D.
+    ///
+    /// # Errors
+    /// [`MapFileError::Malformed`] for counts beyond what the format holds.
+    pub fn map_file(&self) -> Result<MapFile, MapFileError> {
+        let mut file = self
+            .mapping
+            .visual()
+            .map()
+            .to_map_file(map_file::Rig::Rgbd)?;
+        file.sections.push(map::floor_section(&self.grid())?);
+        file.header.notes = serde_json::json!({ "session": "ground robot navigation" });
+        Ok(file)
+    }
+
     /// Re-plans when due (or when there is no path yet).
     fn replan(&mut self, t: f64, position: &Point2<f64>) {
         if t + 1e-9 < self.next_replan_s && !self.tracker.path().is_empty() {
@@ -275,6 +296,22 @@ impl GroundRobotNav {
             Err(_) => self.plan_failures += 1,
         }
         self.next_replan_s = t + self.replan_period_s;
+    }
+}
+
+impl Session for GroundRobotNav {
+    fn push(&mut self, observation: Observation) -> Option<Update> {
+        self.process(observation).map(|o| o.update)
+    }
+
+    /// Writes the camera's keyframes and the floor grid ([`GroundRobotNav::map_file`]).
+    fn save(&self, path: &Path) -> Result<(), SlamError> {
+        self.map_file()
+            .and_then(|file| file.save(path))
+            .map_err(|source| SlamError::MapFile {
+                path: path.to_path_buf(),
+                source,
+            })
     }
 }
 

@@ -20,6 +20,7 @@
 //! leaves the old map or the new one, never half of one.
 
 pub mod codec;
+pub mod export;
 
 use flate2::read::DeflateDecoder;
 use flate2::write::DeflateEncoder;

@@ -4,7 +4,6 @@
 use crate::output::prepare_out_dir;
 use anyhow::Context;
 use serde_json::json;
-use slamkit_map::{save_map_yaml, save_png, OccupancyGridConfig};
 use slamkit_slam::lidar::LidarMap;
 use slamkit_slam::map_file::{peek_version, MapFile, Rig};
 use std::path::{Path, PathBuf};
@@ -27,8 +26,9 @@ enum MapCommand {
         #[arg(long)]
         json: bool,
     },
-    /// Write a map file's contents as map.pgm/.yaml/.png (occupancy grid), cloud.ply and
-    /// trajectory.tum (every scan of the runs that built it).
+    /// Write a map file's contents as map.pgm/.yaml/.png (the grid a robot plans in, for 2D
+    /// lidar, drone and ground-robot maps), cloud.ply (the map's points) and trajectory.tum (the
+    /// scans or keyframes that built it).
     Export {
         /// The `.skmap` file.
         file: PathBuf,
@@ -121,27 +121,12 @@ fn info(file: &Path, as_json: bool) -> anyhow::Result<()> {
 fn export(file: &Path, out: &Path) -> anyhow::Result<()> {
     let (map, _, _, _) = load(file)?;
     let out = prepare_out_dir(out)?;
-    match map.header.rig {
-        Rig::Lidar2d => {
-            let lidar = LidarMap::from_file(&map)
-                .with_context(|| format!("map file {}", file.display()))?;
-            let grid = lidar.grid(OccupancyGridConfig::default())?;
-            save_map_yaml(&grid, &out.join("map.yaml"))?;
-            save_png(&grid, &out.join("map.png"))?;
-            let cloud = lidar.cloud();
-            let comment = format!("slamkit map export of {}", file.display());
-            slamkit_io::ply::write_ply(&out.join("cloud.ply"), &cloud, &comment)?;
-            slamkit_io::trajectory_file::write_tum(
-                &out.join("trajectory.tum"),
-                &lidar.trajectory(),
-            )?;
-            println!(
-                "map.pgm, map.yaml, map.png, cloud.ply ({} points), trajectory.tum in {}",
-                cloud.len(),
-                out.display()
-            );
-        }
-        rig => anyhow::bail!("exporting {rig} maps is not supported yet"),
-    }
+    let exported = slamkit_slam::map_file::export::export(&map, file, &out)?;
+    println!(
+        "{} ({} points) in {}",
+        exported.files.join(", "),
+        exported.cloud_points,
+        out.display()
+    );
     Ok(())
 }

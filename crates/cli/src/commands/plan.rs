@@ -36,13 +36,15 @@ impl From<Planner> for GridPlanner {
     }
 }
 
-/// The occupancy grid of a ROS map_server YAML, or of a `.skmap` (rebuilt from its keyframes).
-fn load_grid(path: &Path) -> anyhow::Result<slamkit_map::OccupancyGrid> {
+/// The grid of a ROS map_server YAML (its known part), or of a `.skmap`
+/// ([`slamkit_slam::map_file::export::planning_grid`]).
+fn load_grid(path: &Path) -> anyhow::Result<TriGrid> {
     if crate::commands::lidar::is_skmap(path) {
-        let (map, _) = slamkit_slam::lidar::LidarMap::load(path)?;
-        return Ok(map.grid(slamkit_map::OccupancyGridConfig::default())?);
+        let file = slamkit_slam::map_file::MapFile::load(path)?;
+        let grid = slamkit_slam::map_file::export::planning_grid(&file, path)?;
+        return grid.with_context(|| format!("a {} map without a grid to plan on", file.header.rig));
     }
-    Ok(load_map_yaml(path)?)
+    Ok(TriGrid::from_occupancy_grid(&load_map_yaml(path)?))
 }
 
 /// Arguments of `slamkit plan`.
@@ -90,9 +92,8 @@ pub fn run(args: &PlanArgs) -> anyhow::Result<()> {
     let started = Instant::now();
     let start = parse_xy(&args.start, "start")?;
     let goal = parse_xy(&args.goal, "goal")?;
-    let map =
+    let grid =
         load_grid(&args.map).with_context(|| format!("reading map {}", args.map.display()))?;
-    let grid = TriGrid::from_occupancy_grid(&map);
     let inflated = grid.inflated(args.inflate_cells);
     let planner = GridPlanner::from(args.planner);
     let plan_started = Instant::now();

@@ -24,6 +24,7 @@ use slamkit_vo::{FrameStatus, VoConfig};
 use std::time::Instant;
 
 use super::{plan_inflated, CameraStats, GroundRobotNav, GroundRobotNavConfig, MountedCamera};
+use crate::map_file::MapFile;
 use crate::SlamError;
 
 /// Frame rate of the camera in the loop \[Hz\] (the sensor gives 30). Measured on office
@@ -146,6 +147,9 @@ pub struct NavOutcome {
     pub plans: Vec<PlannedPath>,
     /// The map built by the robot (world frame).
     pub grid: TriGrid,
+    /// The session's map file (camera keyframes and the floor grid), to save with
+    /// [`MapFile::save`].
+    pub map: MapFile,
     /// Shortest path from start to goal on the world rasterised at [`TRUTH_RESOLUTION_M`] and
     /// inflated by the robot's radius.
     pub optimal: PlannedPath,
@@ -262,10 +266,13 @@ impl Scores {
         mut timings: StageTimings,
         (optimal, time_s, final_distance_m): (PlannedPath, f64, f64),
         goal_tolerance_m: f64,
-    ) -> NavOutcome {
+    ) -> Result<NavOutcome, SlamError> {
         let errors = &self.localisation_errors_m;
         timings.merge(nav.timings());
-        NavOutcome {
+        Ok(NavOutcome {
+            map: nav
+                .map_file()
+                .map_err(|e| SlamError::Map(format!("the robot's map: {e}")))?,
             reached: final_distance_m <= goal_tolerance_m,
             time_s,
             path_length_m: self.ground_truth.path_length_m(),
@@ -283,7 +290,7 @@ impl Scores {
             ground_truth: self.ground_truth,
             estimate: self.estimate,
             optimal,
-        }
+        })
     }
 }
 
@@ -332,7 +339,7 @@ pub fn run_nav_loop(
         let started = Instant::now();
         let frame = robot.rgbd_frame(index, t);
         timings.record_since("render", started);
-        let Some(outcome) = nav.push(Observation::Rgbd(frame)) else {
+        let Some(outcome) = nav.process(Observation::Rgbd(frame)) else {
             return Err(SlamError::Config(
                 "the simulated camera's frames are not the session's".into(),
             ));
@@ -367,12 +374,12 @@ pub fn run_nav_loop(
         scores.blocked_steps += usize::from(!moved);
     }
     let final_distance_m = (Point2::from(robot.truth().translation.vector) - goal).norm();
-    Ok(scores.finish(
+    scores.finish(
         nav,
         timings,
         (optimal, t, final_distance_m),
         config.goal_tolerance_m,
-    ))
+    )
 }
 
 #[cfg(test)]

@@ -35,6 +35,7 @@ use slamkit_vo::frame::Rig;
 use slamkit_vo::{FrameStatus, VoConfig};
 use std::time::Instant;
 
+use crate::session::Update;
 use crate::visual::{PointMapping, VisualSlam};
 use crate::SlamError;
 
@@ -78,6 +79,9 @@ pub struct MountedCamera {
 /// A frame's outcome.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FrameOutcome {
+    /// The session's answer: `map_from_base` at the base's height (the map frame is the
+    /// world's, the start being known), how VO tracked, the keyframes it added.
+    pub update: Update,
     /// Estimated planar `world_from_base`; `None` when VO failed on the frame.
     pub world_from_base: Option<Pose2>,
     /// What VO made of the frame.
@@ -152,12 +156,17 @@ impl FloorMapping {
         let visual = visual?;
         self.stats.frames += 1;
         let status = visual.frame;
+        let mut update = Update {
+            pose: None,
+            ..visual.update
+        };
         let world_from_camera = match (&status, visual.update.pose) {
             (FrameStatus::Initialised { .. } | FrameStatus::Tracked { .. }, Some(pose)) => pose,
             _ => {
                 self.stats.failed += 1;
                 self.previous = None;
                 return Some(FrameOutcome {
+                    update,
                     world_from_base: None,
                     status,
                     gate_open: false,
@@ -193,7 +202,9 @@ impl FloorMapping {
         } else {
             self.stats.gated += 1;
         }
+        update.pose = Some(self.planar(&world_from_base));
         Some(FrameOutcome {
+            update,
             world_from_base: Some(world_from_base),
             status,
             gate_open,
@@ -215,6 +226,11 @@ impl FloorMapping {
     /// Frame counters.
     pub(super) fn stats(&self) -> CameraStats {
         self.stats
+    }
+
+    /// The camera session (its keyframes are the map file's).
+    pub(super) fn visual(&self) -> &VisualSlam {
+        &self.vo
     }
 }
 
