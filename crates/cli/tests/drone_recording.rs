@@ -119,7 +119,10 @@ fn check_seed(seed: u64) {
     );
     assert!(dir.path().join("rec/map.skmap").exists());
     // the saved layers export as a grid, a cloud with a height per layer, keyframe poses
-    slamkit(&["map", "export", "rec/map.skmap", "--out", "export"], dir.path());
+    slamkit(
+        &["map", "export", "rec/map.skmap", "--out", "export"],
+        dir.path(),
+    );
     let export = dir.path().join("export");
     for file in ["map.pgm", "map.yaml", "map.png", "trajectory.tum"] {
         assert!(export.join(file).exists(), "exported {file}");

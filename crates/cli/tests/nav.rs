@@ -45,6 +45,17 @@ fn office_seed_1_reaches_the_built_in_goal() {
         csv.lines().count(),
         1 + frames["frames"].as_u64().unwrap() as usize
     );
+    // the robot's map, saved, is one `slamkit plan` plans on: from its start to the goal
+    let first = tum.lines().find(|l| !l.starts_with('#')).unwrap();
+    let xy: Vec<&str> = first.split_whitespace().skip(1).take(2).collect();
+    let plan = Command::new(env!("CARGO_BIN_EXE_slamkit"))
+        .args(["plan", "--map"])
+        .arg(out.join("map.skmap"))
+        .args(["--start", &xy.join(","), "--goal", "11.5,5.0", "--out"])
+        .arg(dir.path().join("plan"))
+        .output()
+        .unwrap();
+    assert!(plan.status.success(), "{plan:?}");
 }
 
 #[test]

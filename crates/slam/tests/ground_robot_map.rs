@@ -5,13 +5,13 @@
 
 use nalgebra::Point2;
 use slamkit_core::Observation;
+use slamkit_sim::{GroundRobot, World};
 use slamkit_slam::ground_robot::closed_loop::NavLoopConfig;
 use slamkit_slam::ground_robot::map::floor_grid;
 use slamkit_slam::ground_robot::{plan_inflated, GroundRobotNavConfig, MountedCamera};
 use slamkit_slam::map_file::{MapFile, Rig};
 use slamkit_slam::visual::keyframes::VisualMap;
 use slamkit_slam::{GroundRobotNav, Session, TrackingStatus};
-use slamkit_sim::{GroundRobot, World};
 
 #[test]
 fn a_saved_ground_robot_map_loads_with_its_grid_and_keyframes() {
@@ -50,6 +50,11 @@ fn a_saved_ground_robot_map_loads_with_its_grid_and_keyframes() {
     assert_eq!(visual.keyframes.len(), keyframes);
 
     let here = Point2::from(robot.truth().translation.vector);
-    let plan = plan_inflated(&grid, &here, &goal, config.inflate_cells(grid.resolution_m()));
+    let plan = plan_inflated(
+        &grid,
+        &here,
+        &goal,
+        config.inflate_cells(grid.resolution_m()),
+    );
     assert!(plan.is_ok(), "no plan on the loaded grid: {plan:?}");
 }

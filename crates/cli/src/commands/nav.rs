@@ -7,7 +7,8 @@
 //! Writes in `--out`: `trajectory.tum` (estimated poses), `groundtruth.tum` (true poses),
 //! `frames.csv` (per camera frame: true and estimated pose, VO's status, inliers and failure),
 //! `map.png` (the robot's map, inflated obstacles shaded, every plan in red, the true driven
-//! path in blue, the true-map shortest path in green) and `report.json` (`localisation`,
+//! path in blue, the true-map shortest path in green), `map.skmap` (the camera's keyframes and
+//! the floor grid: `slamkit plan --map` plans on it) and `report.json` (`localisation`,
 //! `metrics.reached`, `metrics.time_s`, `metrics.path_length_m`, `metrics.optimal_length_m`,
 //! `metrics.max_cross_track_m`, ...).
 
@@ -76,6 +77,7 @@ pub fn run(args: &NavArgs) -> anyhow::Result<()> {
     write_tum(&out.join("trajectory.tum"), &outcome.estimate)?;
     write_tum(&out.join("groundtruth.tum"), &outcome.ground_truth)?;
     save_rgb_png(&out.join("map.png"), &outcome.map_image(&config))?;
+    outcome.map.save(&out.join("map.skmap"))?;
     write_frames_csv(&out.join("frames.csv"), &outcome.frames)?;
     let o = &outcome;
     let report = json!({

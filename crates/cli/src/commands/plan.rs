@@ -42,7 +42,8 @@ fn load_grid(path: &Path) -> anyhow::Result<TriGrid> {
     if crate::commands::lidar::is_skmap(path) {
         let file = slamkit_slam::map_file::MapFile::load(path)?;
         let grid = slamkit_slam::map_file::export::planning_grid(&file, path)?;
-        return grid.with_context(|| format!("a {} map without a grid to plan on", file.header.rig));
+        return grid
+            .with_context(|| format!("a {} map without a grid to plan on", file.header.rig));
     }
     Ok(TriGrid::from_occupancy_grid(&load_map_yaml(path)?))
 }

@@ -75,12 +75,18 @@ pub fn floor_grid(file: &MapFile) -> Result<Option<TriGrid>, MapFileError> {
     let [resolution_m, x, y] = [r.f64()?, r.f64()?, r.f64()?];
     let width = r.u32()? as usize;
     let height = r.len(width)?;
-    let mut grid = TriGrid::new(width, height, resolution_m, Point2::new(x, y), Occupancy::Unknown)
-        .ok_or_else(|| {
-            MapFileError::Malformed(format!(
-                "the floor grid is {width} × {height} cells of {resolution_m} m"
-            ))
-        })?;
+    let mut grid = TriGrid::new(
+        width,
+        height,
+        resolution_m,
+        Point2::new(x, y),
+        Occupancy::Unknown,
+    )
+    .ok_or_else(|| {
+        MapFileError::Malformed(format!(
+            "the floor grid is {width} × {height} cells of {resolution_m} m"
+        ))
+    })?;
     let cells = r.take(width * height)?;
     for (i, &cell) in cells.iter().enumerate() {
         let state = match cell {

@@ -9,6 +9,7 @@
 //! Grids go out as ROS `map_server` maps ([`slamkit_map::grid_io`]), clouds as ASCII PLY,
 //! poses as TUM trajectories (`timestamp tx ty tz qx qy qz qw`).
 
+use super::MapFileError;
 use super::{MapFile, Rig};
 use crate::drone::map::DroneMap;
 use crate::ground_robot::map::floor_grid;
@@ -19,7 +20,6 @@ use nalgebra::Point3;
 use slamkit_core::{Pose3, Trajectory};
 use slamkit_io::ply::write_ply;
 use slamkit_io::trajectory_file::write_tum;
-use super::MapFileError;
 use slamkit_map::grid_io::{save_image_png, save_image_yaml, tri_grid_image};
 use slamkit_map::{OccupancyGridConfig, TriGrid};
 use std::path::Path;
@@ -139,7 +139,13 @@ mod tests {
         assert_eq!(exported.cloud_points, 1);
         assert_eq!(
             exported.files,
-            ["map.pgm", "map.yaml", "map.png", "cloud.ply", "trajectory.tum"]
+            [
+                "map.pgm",
+                "map.yaml",
+                "map.png",
+                "cloud.ply",
+                "trajectory.tum"
+            ]
         );
         let ply = std::fs::read_to_string(dir.join("cloud.ply")).unwrap();
         // (1, 0, 0) turned a quarter about z is (0, 1, 0), then moved by (1, 2, 0.5)
@@ -148,7 +154,10 @@ mod tests {
             .split_whitespace()
             .map(|v| v.parse().unwrap())
             .collect();
-        assert!((xyz[0] - 1.0).abs() < 1e-6 && (xyz[1] - 3.0).abs() < 1e-6, "{vertex}");
+        assert!(
+            (xyz[0] - 1.0).abs() < 1e-6 && (xyz[1] - 3.0).abs() < 1e-6,
+            "{vertex}"
+        );
         let yaml = std::fs::read_to_string(dir.join("map.yaml")).unwrap();
         assert!(yaml.contains("resolution: 0.5"), "{yaml}");
         let pgm = std::fs::read(dir.join("map.pgm")).unwrap();
