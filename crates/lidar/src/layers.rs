@@ -52,6 +52,7 @@ pub mod layer_map;
 pub mod layer_pf;
 pub mod reference;
 pub mod relocalise;
+pub mod saved;
 pub mod velocity;
 
 use crate::cloud::{estimate_normals, scan_points};
@@ -317,6 +318,9 @@ pub struct LayeredIcpSlam {
     last_relocalised_s: Option<f64>,
     /// Product of every re-localisation's correction (corrected = this · smooth).
     corrections: Pose2,
+    /// The keyframes of a saved map the mapper started in ([`saved`]): the first ones of
+    /// `keyframe_log`, never moved.
+    loaded: saved::Loaded,
     stats: LayeredStats,
     timings: StageTimings,
 }
@@ -340,6 +344,7 @@ impl LayeredIcpSlam {
             keyframe_log: Vec::new(),
             last_relocalised_s: None,
             corrections: Pose2::identity(),
+            loaded: saved::Loaded::default(),
             stats: LayeredStats::default(),
             timings: StageTimings::default(),
             config,
@@ -605,7 +610,8 @@ impl LayeredIcpSlam {
             renormalised(partial_correction(from, to, share(t, anchor_s, now_s)) * p)
         };
         let mut by_layer: BTreeMap<i64, BTreeMap<usize, Pose2>> = BTreeMap::new();
-        for k in self.keyframe_log.iter_mut().filter(|k| k.time_s > anchor_s) {
+        let mine = self.keyframe_log.iter_mut().skip(self.loaded.count);
+        for k in mine.filter(|k| k.time_s > anchor_s) {
             k.keyframe.world_from_base = moved(k.time_s, &k.keyframe.world_from_base);
             by_layer
                 .entry(k.layer)

@@ -22,6 +22,7 @@
 //! at the floor under it. The session never reads ground truth.
 
 pub mod grids;
+pub mod in_map;
 pub mod kidnapped;
 pub mod layer_choice;
 pub mod map;
@@ -41,6 +42,7 @@ use slamkit_lidar::layers::{
     LayerMap, LayerScanStatus, LayeredEstimate, LayeredIcpSlam, LayeredSlamConfig, LayeredStats,
 };
 use slamkit_lidar::rbpf::RbpfConfig;
+use std::collections::BTreeMap;
 use std::path::Path;
 
 /// Settings of a [`DroneSlam`] session.
@@ -58,6 +60,8 @@ pub struct DroneSlamConfig {
     /// The particle filter on the layered increments; `None` (the default): not run. A
     /// drone's tuning is [`particle_filter::drone_pf_config`].
     pub particle_filter: Option<RbpfConfig>,
+    /// Finding the drone in a saved map ([`DroneSlam::localise`], [`DroneSlam::resume`]).
+    pub in_map: in_map::InMapConfig,
 }
 
 /// What the session made of one scan.
@@ -111,6 +115,16 @@ pub struct DroneSlam {
     pf_pose: Option<Pose3>,
     scans: Vec<ScanRecord>,
     ignored: usize,
+    /// In a saved map, until the drone is found in it.
+    search: Option<in_map::Search>,
+    /// The saved map the session started in; its keyframes never move.
+    saved: Option<map::DroneMap>,
+    /// How it was found (in a saved map).
+    in_map_stats: Option<in_map::InMapStats>,
+    /// Scans before the drone was found in a saved map (they have no record).
+    unplaced: usize,
+    /// Localisation in a saved map: the map is not changed.
+    frozen: bool,
 }
 
 impl DroneSlam {
@@ -139,7 +153,45 @@ impl DroneSlam {
             pf_pose: None,
             scans: Vec::new(),
             ignored: 0,
+            search: None,
+            saved: None,
+            in_map_stats: None,
+            unplaced: 0,
+            frozen: false,
         })
+    }
+
+    /// A session localising in `map`, which it never changes: the drone's start is unknown
+    /// and found by a global search ([`in_map`]); layers the map lacks are mapped for the
+    /// session's own use and not saved.
+    ///
+    /// # Errors
+    /// [`SlamError`] for an invalid configuration, a map without keyframes, or one whose layers
+    /// are of another height than the session's.
+    pub fn localise(config: DroneSlamConfig, map: map::DroneMap) -> Result<Self, SlamError> {
+        Self::in_map(config, map, true)
+    }
+
+    /// A session continuing `map`: the drone is found in it by a global search, then mapping
+    /// goes on in its layers (the saved keyframes stay where they are).
+    ///
+    /// # Errors
+    /// As [`DroneSlam::localise`].
+    pub fn resume(config: DroneSlamConfig, map: map::DroneMap) -> Result<Self, SlamError> {
+        Self::in_map(config, map, false)
+    }
+
+    fn in_map(
+        config: DroneSlamConfig,
+        map: map::DroneMap,
+        frozen: bool,
+    ) -> Result<Self, SlamError> {
+        let search = in_map::Search::new(map.clone(), &config.layers, config.in_map.clone())?;
+        let mut session = Self::new(config)?;
+        session.search = Some(search);
+        session.saved = Some(map);
+        session.frozen = frozen;
+        Ok(session)
     }
 
     /// A session with `config` fed every one of `observations` (in time order), calling
@@ -184,6 +236,26 @@ impl DroneSlam {
 
     fn scan(&mut self, scan: &LaserScan) -> Update {
         let (input, range) = self.readings.input(scan);
+        if let Some(search) = &mut self.search {
+            let found = search.find(&input);
+            self.in_map_stats = Some(search.stats);
+            let Some(fix) = found else {
+                self.unplaced += 1;
+                return Update {
+                    timestamp: scan.timestamp,
+                    pose: None,
+                    status: TrackingStatus::Initialising,
+                    map: MapChange::default(),
+                };
+            };
+            let saved = search.saved();
+            self.slam
+                .start_in_saved_map(saved, fix, scan.timestamp, self.frozen);
+            self.search = None;
+            if let Some(stats) = &mut self.in_map_stats {
+                stats.found_at_scan = Some(self.unplaced);
+            }
+        }
         let keyframes = self.slam.keyframes().len();
         let relocalisations = self.slam.stats().relocalisations;
         let estimate = self.slam.process(&input);
@@ -305,6 +377,45 @@ impl DroneSlam {
     pub fn ignored(&self) -> usize {
         self.ignored
     }
+
+    /// In a saved map: how the search for the drone went (`None` for a new map).
+    pub fn in_map_stats(&self) -> Option<in_map::InMapStats> {
+        self.in_map_stats
+    }
+
+    /// Scans pushed before the drone was found in a saved map; [`Self::scans`] begins after
+    /// them.
+    pub fn unplaced_scans(&self) -> usize {
+        self.unplaced
+    }
+
+    /// The map as it stands, in the map frame: the layers' keyframes. Localising, the saved
+    /// map as loaded (the layers the map lacks, mapped for the session's own use, are left
+    /// out); continuing, the saved keyframes with the new ones.
+    pub fn map(&self) -> map::DroneMap {
+        let mut map = match &self.saved {
+            Some(saved) => saved.clone(),
+            None => map::DroneMap {
+                config: self.config.clone(),
+                layers: BTreeMap::new(),
+            },
+        };
+        if self.frozen || self.search.is_some() {
+            return map;
+        }
+        let new = self.slam.keyframes().iter().skip(self.slam.loaded().count);
+        for k in new {
+            map.layers
+                .entry(k.layer)
+                .or_default()
+                .push(map::SavedKeyframe {
+                    time_s: k.time_s,
+                    map_from_base: self.map_from_world * k.keyframe.world_from_base,
+                    points: k.keyframe.points.clone(),
+                });
+        }
+        map
+    }
 }
 
 impl Session for DroneSlam {
@@ -312,9 +423,11 @@ impl Session for DroneSlam {
         DroneSlam::push(self, observation)
     }
 
-    /// Writes the layers' keyframes (one section per layer) and the settings.
+    /// Writes the layers' keyframes (one section per layer) and the settings
+    /// ([`DroneSlam::map`]).
     fn save(&self, path: &Path) -> Result<(), SlamError> {
-        map::to_map_file(self)
+        self.map()
+            .to_map_file()
             .and_then(|file| file.save(path))
             .map_err(|source| SlamError::MapFile {
                 path: path.to_path_buf(),

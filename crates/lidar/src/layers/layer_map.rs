@@ -38,6 +38,8 @@ pub struct LayerIcpMap {
     failures: usize,
     scans: usize,
     created_s: f64,
+    /// Takes no new keyframe (a saved map localised in).
+    frozen: bool,
 }
 
 impl LayerIcpMap {
@@ -49,7 +51,19 @@ impl LayerIcpMap {
             failures: 0,
             scans: 0,
             created_s,
+            frozen: false,
         }
+    }
+
+    /// Adds a keyframe of a saved map as it is.
+    pub fn load(&mut self, keyframe: Keyframe) {
+        self.last_keyframe = Some(keyframe.world_from_base);
+        self.map.insert(keyframe);
+    }
+
+    /// From now on the map takes no new keyframe: scans are matched against it only.
+    pub fn freeze(&mut self) {
+        self.frozen = true;
     }
 
     /// When the map was created \[s\].
@@ -130,7 +144,8 @@ impl LayerIcpMap {
     /// only predicted) and inserts the scan as a keyframe when the layer is empty, or the drone
     /// moved or turned far enough since the last keyframe and the pose was accepted (or the
     /// layer failed to match `max_failures_before_insert` scans in a row, so that the map
-    /// follows the drone into new ground). Returns true when inserted.
+    /// follows the drone into new ground), unless the map is frozen. Returns true when
+    /// inserted.
     pub fn record(
         &mut self,
         scan: &PreparedScan,
@@ -146,7 +161,8 @@ impl LayerIcpMap {
                 || d.rotation.angle().abs() >= c.insertion_angular_rad
         });
         let stale = self.failures >= c.max_failures_before_insert.max(1);
-        let insert = (self.map.is_empty() || (moved && (accepted || stale)))
+        let insert = !self.frozen
+            && (self.map.is_empty() || (moved && (accepted || stale)))
             && scan.points.len() >= c.min_scan_points;
         if insert {
             self.map.insert(Keyframe {

@@ -270,6 +270,18 @@ impl VelocityTracker {
         }
     }
 
+    /// The drone is where it is known to be but its velocity is not known (found mid-flight
+    /// in a saved map): zero, with a standard deviation of `sigma_mps` on each axis, so that
+    /// the first flow readings and matches set it.
+    pub fn unknown_velocity(&mut self, sigma_mps: f64) {
+        self.velocity = Vector3::zeros();
+        self.covariance = Matrix4::zeros();
+        self.covariance[(2, 2)] = sigma_mps.powi(2);
+        self.covariance[(3, 3)] = sigma_mps.powi(2);
+        self.pending = Vector2::zeros();
+        self.history.clear();
+    }
+
     /// Updates the velocity with an optical-flow reading (`velocity_mps`, body frame, the mean
     /// since the last scan); the position correction it implies goes into the next step.
     pub fn measure_flow(&mut self, velocity_mps: &Vector2<f64>) {

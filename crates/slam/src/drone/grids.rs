@@ -41,7 +41,8 @@ impl LayerGrids {
 }
 
 impl DroneSlam {
-    /// Grids of `scans` (the scans pushed, in order) at the poses estimated for them, seen
+    /// Grids of `scans` (the scans pushed, in order; those before the drone was found in a
+    /// saved map are left out) at the poses estimated for them, seen
     /// from `frame` (`frame_from_world`, the world being the first scan's frame; give
     /// [`DroneSlam::map_from_world`] for the map frame): one of every scan matched in a layer
     /// and one per layer. Scans not matched (tilted, no height) are left out.
@@ -53,7 +54,7 @@ impl DroneSlam {
     ) -> Result<LayerGrids, SlamError> {
         let mut posed: BTreeMap<i64, Vec<(&LaserScan, Pose2)>> = BTreeMap::new();
         let mut every = Vec::new();
-        for (scan, record) in scans.iter().zip(self.scans()) {
+        for (scan, record) in scans.iter().skip(self.unplaced_scans()).zip(self.scans()) {
             let est = &record.estimate;
             let (LayerScanStatus::Slam(_), Some(layer)) = (est.status, est.layer) else {
                 continue;

@@ -7,7 +7,7 @@
 //!   `map_from_base`, `u32` point count and the points' `f64` x, y in the keyframe's base
 //!   frame \[m\]. Normals and grids are rebuilt from the points.
 
-use super::{DroneSlam, DroneSlamConfig};
+use super::DroneSlamConfig;
 use crate::lidar::grid_of_scans;
 use crate::map_file::codec::{Reader, Writer};
 use crate::map_file::{MapFile, MapFileError, MapHeader, Rig, Section};
@@ -34,53 +34,51 @@ pub struct SavedKeyframe {
     pub points: Vec<Point2<f64>>,
 }
 
-/// The map file of `session`'s layers as they stand.
-pub(crate) fn to_map_file(session: &DroneSlam) -> Result<MapFile, MapFileError> {
-    let mut layers: BTreeMap<i64, Vec<SavedKeyframe>> = BTreeMap::new();
-    for k in session.layered().keyframes() {
-        layers.entry(k.layer).or_default().push(SavedKeyframe {
-            time_s: k.time_s,
-            map_from_base: session.map_from_world * k.keyframe.world_from_base,
-            points: k.keyframe.points.clone(),
-        });
-    }
-    let mut sections = vec![Section {
-        tag: CONFIG_TAG,
-        data: serde_json::to_vec(session.config())
-            .map_err(|e| MapFileError::Malformed(format!("settings as JSON: {e}")))?,
-    }];
-    let mut extent: Option<[f64; 4]> = None;
-    let mut keyframes = 0;
-    for (layer, saved) in &layers {
-        let layer = i32::try_from(*layer).map_err(|_| {
-            MapFileError::Malformed(format!("layer {layer} beyond the file's range"))
-        })?;
-        let mut w = Writer::new();
-        w.i32(layer);
-        w.len(saved.len())?;
-        for k in saved {
-            let t = k.map_from_base.translation.vector;
-            for v in [k.time_s, t.x, t.y, k.map_from_base.rotation.angle()] {
-                w.f64(v);
+impl DroneMap {
+    /// The map as a map file.
+    ///
+    /// # Errors
+    /// [`MapFileError::Malformed`] for a layer index or a count beyond the format's range.
+    pub fn to_map_file(&self) -> Result<MapFile, MapFileError> {
+        let layers = &self.layers;
+        let mut sections = vec![Section {
+            tag: CONFIG_TAG,
+            data: serde_json::to_vec(&self.config)
+                .map_err(|e| MapFileError::Malformed(format!("settings as JSON: {e}")))?,
+        }];
+        let mut extent: Option<[f64; 4]> = None;
+        let mut keyframes = 0;
+        for (layer, saved) in layers {
+            let layer = i32::try_from(*layer).map_err(|_| {
+                MapFileError::Malformed(format!("layer {layer} beyond the file's range"))
+            })?;
+            let mut w = Writer::new();
+            w.i32(layer);
+            w.len(saved.len())?;
+            for k in saved {
+                let t = k.map_from_base.translation.vector;
+                for v in [k.time_s, t.x, t.y, k.map_from_base.rotation.angle()] {
+                    w.f64(v);
+                }
+                w.len(k.points.len())?;
+                for p in &k.points {
+                    w.f64(p.x);
+                    w.f64(p.y);
+                    grow(&mut extent, &(k.map_from_base * p));
+                }
+                grow(&mut extent, &Point2::from(t));
             }
-            w.len(k.points.len())?;
-            for p in &k.points {
-                w.f64(p.x);
-                w.f64(p.y);
-                grow(&mut extent, &(k.map_from_base * p));
-            }
-            grow(&mut extent, &Point2::from(t));
+            keyframes += saved.len();
+            sections.push(Section {
+                tag: LAYER_TAG,
+                data: w.into_bytes(),
+            });
         }
-        keyframes += saved.len();
-        sections.push(Section {
-            tag: LAYER_TAG,
-            data: w.into_bytes(),
-        });
+        Ok(MapFile {
+            header: MapHeader::new(Rig::Drone, keyframes, extent),
+            sections,
+        })
     }
-    Ok(MapFile {
-        header: MapHeader::new(Rig::Drone, keyframes, extent),
-        sections,
-    })
 }
 
 /// Beams per turn of the scans rebuilt from keyframe points (1°). A keyframe keeps the points
@@ -90,7 +88,7 @@ pub(crate) fn to_map_file(session: &DroneSlam) -> Result<MapFile, MapFileError> 
 const REBUILT_BEAMS: usize = 360;
 
 impl SavedKeyframe {
-    /// The keyframe's points as a scan from its base (one beam per 0.25°, the nearest point
+    /// The keyframe's points as a scan from its base (one beam per degree, the nearest point
     /// where several fall in one beam, no return elsewhere): what a grid inserts, with free
     /// space along each beam, to draw the map.
     pub fn scan(&self) -> LaserScan {

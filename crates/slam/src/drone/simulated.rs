@@ -25,7 +25,6 @@ use nalgebra::{Translation3, UnitQuaternion};
 use serde::Serialize;
 use slamkit_core::pose::pose3_to_pose2;
 use slamkit_core::{Pose3, Trajectory};
-use slamkit_lidar::layers::LayeredSlamConfig;
 use slamkit_sim::LidarRun;
 use std::time::Instant;
 
@@ -156,8 +155,8 @@ pub fn sim_from_slam(run: &LidarRun) -> Result<Pose3, SlamError> {
 /// with `seed`.
 pub fn flight_config(seed: u64) -> DroneSlamConfig {
     DroneSlamConfig {
-        layers: LayeredSlamConfig::default(),
         particle_filter: Some(drone_pf_config(seed)),
+        ..DroneSlamConfig::default()
     }
 }
 
