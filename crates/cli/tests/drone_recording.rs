@@ -135,6 +135,33 @@ fn check_seed(seed: u64) {
         .filter_map(|l| l.split_whitespace().nth(2).map(str::to_string))
         .collect();
     assert!(heights.len() > 3, "layer heights in the cloud: {heights:?}");
+    // the same recording localised in its own saved map, the start pose not given
+    slamkit(
+        &[
+            "lidar",
+            "rec/lidar.clf",
+            "--ranges",
+            "rec/ranges.csv",
+            "--imu",
+            "rec/imu.csv",
+            "--flow",
+            "rec/flow.csv",
+            "--localize",
+            "rec/map.skmap",
+            "--out",
+            "loc",
+        ],
+        dir.path(),
+    );
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("loc/report.json")).unwrap())
+            .unwrap();
+    assert_eq!(report["method"], "localise");
+    assert!(
+        report["in_map"]["found_at_scan"].as_u64().unwrap() < 100,
+        "{}",
+        report["in_map"]
+    );
     let (layered, pf) = demo_trajectories(seed);
     assert_same("layered", &out.join("trajectory.tum"), &layered);
     assert_same("particle filter", &out.join("trajectory_pf.tum"), &pf);

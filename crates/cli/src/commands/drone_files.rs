@@ -7,23 +7,23 @@ use nalgebra::Point3;
 use slamkit_core::Observation;
 use slamkit_map::{save_map_yaml, save_png};
 use slamkit_slam::drone::grids::LayerGrids;
-use slamkit_slam::{DroneSlam, DroneSlamConfig};
+use slamkit_slam::DroneSlam;
 use std::path::{Path, PathBuf};
 
-/// Feeds `observations` (in time order) to a new session with `config`, with a progress bar
-/// over the scans.
-pub fn run_session(
-    observations: Vec<Observation>,
-    config: DroneSlamConfig,
-) -> anyhow::Result<DroneSlam> {
+/// Feeds `observations` (in time order) to `session`, with a progress bar over the scans.
+pub fn run_session(observations: Vec<Observation>, mut session: DroneSlam) -> DroneSlam {
     let scans = observations
         .iter()
         .filter(|o| matches!(o, Observation::Scan(_)))
         .count();
     let bar = progress_bar(scans as u64, "drone-slam");
-    let session = DroneSlam::from_observations(config, observations, || bar.inc(1))?;
+    for observation in observations {
+        if session.push(observation).is_some() {
+            bar.inc(1);
+        }
+    }
     bar.finish_and_clear();
-    Ok(session)
+    session
 }
 
 /// A height layer's grid map written to disk.

@@ -92,10 +92,6 @@ pub struct LidarArgs {
 pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
     check_relations(args)?;
     if let Some(ranges) = &args.ranges {
-        anyhow::ensure!(
-            args.localize.is_none() && args.continue_map.is_none(),
-            "--localize and --continue are not available for drone runs (--ranges) yet"
-        );
         return lidar_drone::run(args, ranges);
     }
     if let Some(map) = args.localize.as_deref().filter(|p| !is_skmap(p)) {

@@ -3,7 +3,9 @@
 //! merged in time order with the range finders, attitude and optical flow of the CSV files
 //! ([`slamkit_io::drone_csv`] documents their columns). `--method rbpf` also runs the particle
 //! filter on the layered increments (`--particles`, seeded by `--seed`; a `[particle_filter]`
-//! table in `--config` replaces both). Writes `trajectory.tum`,
+//! table in `--config` replaces both). `--localize MAP.skmap` localises in a drone's saved map
+//! (not changing it), `--continue MAP.skmap` extends it; the drone is found in the map by a
+//! global search ([`slamkit_slam::drone::in_map`]). Writes `trajectory.tum`,
 //! `maps/layer_NNN.{pgm,yaml,png}`, `map.{pgm,yaml,png}`, `cloud.ply`, `report.json`, with
 //! `--method rbpf` `trajectory_pf.tum` and `map_pf.*`, and with `--save-map` the `.skmap`.
 
@@ -11,7 +13,7 @@ use crate::commands::drone_files::{run_session, write_grids, write_ply};
 use crate::commands::lidar::{
     load_config, print_summary, read_log, relations_metrics, LidarArgs, Method,
 };
-use crate::output::{peak_rss_bytes, prepare_out_dir, timings_json, write_report};
+use crate::output::{peak_rss_bytes, prepare_out_dir, timings_json, write_report, Unsuccessful};
 use serde_json::json;
 use slamkit_core::observation::time_ordered;
 use slamkit_core::Observation;
@@ -19,8 +21,9 @@ use slamkit_io::drone_csv::{read_flow, read_imu, read_ranges};
 use slamkit_io::write_tum;
 use slamkit_lidar::rbpf::RbpfConfig;
 use slamkit_map::{save_map_yaml, save_png, OccupancyGridConfig};
+use slamkit_slam::drone::map::DroneMap;
 use slamkit_slam::drone::particle_filter::drone_pf_config;
-use slamkit_slam::{DroneSlamConfig, Session};
+use slamkit_slam::{DroneSlam, DroneSlamConfig, Session};
 use std::path::Path;
 use std::time::Instant;
 
@@ -52,7 +55,18 @@ pub fn run(args: &LidarArgs, ranges: &Path) -> anyhow::Result<()> {
         "flow": observations.iter().filter(|o| matches!(o, Observation::Flow(_))).count(),
     });
     observations.extend(log.scans.iter().cloned().map(Observation::Scan));
-    let session = run_session(time_ordered(observations), config.clone())?;
+    let (session, what) = match (&args.localize, &args.continue_map) {
+        (Some(map), _) => (
+            DroneSlam::localise(config.clone(), DroneMap::load(map)?)?,
+            "localise",
+        ),
+        (None, Some(map)) => (
+            DroneSlam::resume(config.clone(), DroneMap::load(map)?)?,
+            "continue",
+        ),
+        (None, None) => (DroneSlam::new(config.clone())?, "layered"),
+    };
+    let session = run_session(time_ordered(observations), session);
 
     let trajectory = session.trajectory();
     write_tum(&out.join("trajectory.tum"), &trajectory)?;
@@ -78,7 +92,9 @@ pub fn run(args: &LidarArgs, ranges: &Path) -> anyhow::Result<()> {
     let counts = session.frame_counts();
     let report = json!({
         "input": { "log": args.log, "ranges": ranges, "imu": args.imu, "flow": args.flow },
-        "method": "layered",
+        "method": what,
+        "map": args.localize.as_ref().or(args.continue_map.as_ref()),
+        "in_map": session.in_map_stats(),
         "config": config,
         "frames": {
             "read": log.scans.len(),
@@ -102,5 +118,18 @@ pub fn run(args: &LidarArgs, ranges: &Path) -> anyhow::Result<()> {
     write_report(&out, &report)?;
     println!("{} height layers", layer_files.len());
     print_summary(&out, &report);
-    Ok(())
+    let Some(stats) = session.in_map_stats() else {
+        return Ok(());
+    };
+    match stats.found_at_scan {
+        Some(scan) => {
+            println!("found in the map at scan {scan}");
+            Ok(())
+        }
+        None => Err(Unsuccessful(format!(
+            "the drone was never found in the map ({} searches)",
+            stats.searches
+        ))
+        .into()),
+    }
 }

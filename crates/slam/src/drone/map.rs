@@ -127,6 +127,19 @@ pub struct DroneMap {
 }
 
 impl DroneMap {
+    /// Reads a map file and checks it holds a drone map.
+    ///
+    /// # Errors
+    /// [`SlamError::MapFile`] naming `path` for a file that cannot be read, is damaged or holds
+    /// another rig's map.
+    pub fn load(path: &std::path::Path) -> Result<Self, SlamError> {
+        let wrap = |source| SlamError::MapFile {
+            path: path.to_path_buf(),
+            source,
+        };
+        Self::from_file(&MapFile::load(path).map_err(wrap)?).map_err(wrap)
+    }
+
     /// Reads a drone map file.
     ///
     /// # Errors
