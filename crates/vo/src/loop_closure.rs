@@ -31,9 +31,11 @@ pub struct LoopClosureConfig {
     pub orb: OrbConfig,
     /// The place index.
     pub place_index: PlaceIndexConfig,
-    /// Candidates are keyframes at least this many keyframes older than the query, sharing
-    /// no map point with it.
+    /// Candidates are keyframes at least this many keyframes older than the query...
     pub min_keyframes_apart: usize,
+    /// ... sharing at most this many map points with it (more: the two are already
+    /// connected, by odometry or an earlier closure).
+    pub max_shared_points: usize,
     /// Best-voted keyframes kept as candidates of one query.
     pub candidates: usize,
     /// A candidate needs votes from at least this fraction of the query's features.
@@ -64,6 +66,7 @@ impl Default for LoopClosureConfig {
             orb: OrbConfig::default(),
             place_index: PlaceIndexConfig::default(),
             min_keyframes_apart: 10,
+            max_shared_points: 0,
             candidates: 3,
             min_vote_fraction: 0.05,
             temporal_consistency: 3,
