@@ -8,6 +8,13 @@
 //! on a third, as a live camera driver would. The world point map is filled on a thread of its
 //! own ([`point_map`]).
 //!
+//! With [`VoConfig::loop_closure`] on (`slamkit vo --slam`) the session is visual SLAM: its
+//! keyframes, map points, place index and pose graph (module `loop_closing`) close loops and
+//! move the tracking state with the corrected map; [`VisualSlam::corrected_trajectory`] is then
+//! the final trajectory (frames move with their keyframes) and [`VisualSlam::loop_closures`]
+//! what was closed. The world point map and the map file's keyframes keep the poses they were
+//! given when tracked.
+//!
 //! Poses are `world_from_camera` of the rig's reference camera: the depth camera of an RGB-D
 //! rig (the dataset's camera; the tracked colour camera is moved onto it when depth is
 //! registered to colour by the session), the left camera of a stereo rig. The world is wherever
