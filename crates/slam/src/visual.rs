@@ -8,6 +8,13 @@
 //! on a third, as a live camera driver would. The world point map is filled on a thread of its
 //! own ([`point_map`]).
 //!
+//! With [`VoConfig::loop_closure`] on (`slamkit vo --slam`) the session is visual SLAM: its
+//! keyframes, map points, place index and pose graph (module `loop_closing`) close loops and
+//! move the tracking state with the corrected map; [`VisualSlam::corrected_trajectory`] is then
+//! the final trajectory (frames move with their keyframes) and [`VisualSlam::loop_closures`]
+//! what was closed. The world point map and the map file's keyframes keep the poses they were
+//! given when tracked.
+//!
 //! Poses are `world_from_camera` of the rig's reference camera: the depth camera of an RGB-D
 //! rig (the dataset's camera; the tracked colour camera is moved onto it when depth is
 //! registered to colour by the session), the left camera of a stereo rig. The world is wherever
@@ -19,18 +26,20 @@
 //! [`VoConfig::register_depth`]; the rest of [`VoConfig`] is advanced.
 
 pub mod keyframes;
+mod loop_closing;
 pub mod pipeline;
 pub mod point_map;
 mod prepare;
 pub mod simulated;
 
 pub use keyframes::{Keyframe, VisualMap};
+pub use loop_closing::{LoopClosure, LoopStats};
 pub use pipeline::{run, FrameRecord, RunOptions, RunStats, VisualRun};
 pub use point_map::PointMapping;
 pub use prepare::{FramePreparer, PreparedObservation};
 
 use cpu_time::ThreadTime;
-use slamkit_core::{Observation, Pose3, StageTimings};
+use slamkit_core::{Observation, Pose3, StageTimings, Trajectory};
 use slamkit_io::Dataset;
 use slamkit_vo::frame::Rig;
 use slamkit_vo::{FrameStatus, Odometry, TrackingMode, VoConfig, VoxelMap};
@@ -39,6 +48,7 @@ use std::path::Path;
 use crate::map_file;
 use crate::session::{MapChange, Session, TrackingStatus, Update};
 use crate::SlamError;
+use loop_closing::LoopClosing;
 use point_map::PointMapper;
 use prepare::Prepared;
 
@@ -89,6 +99,8 @@ pub struct VisualSlam {
     next_index: usize,
     /// The keyframes for the map file.
     map: VisualMap,
+    /// Place recognition and loop closure (`loop_closure.enabled`).
+    loops: Option<LoopClosing>,
 }
 
 /// Frame counters of a [`VisualSlam`] session.
@@ -169,6 +181,11 @@ impl VisualSlam {
             failures_in_row: 0,
             next_index: 0,
             map: VisualMap::default(),
+            loops: config
+                .loop_closure
+                .enabled
+                .then(|| LoopClosing::new(&config.loop_closure))
+                .transpose()?,
         })
     }
 
@@ -220,14 +237,16 @@ impl VisualSlam {
         self.stats.frames += 1;
         let start = ThreadTime::now();
         let keyframes_before = self.odometry.keyframes();
-        let (status, points) = match frame {
+        let (status, points, place) = match frame {
             Ok(mut frame) => {
                 let points = std::mem::take(&mut frame.map_source);
+                let place = frame.place.take();
                 let status = self.odometry.track(frame);
-                (status, points)
+                (status, points, place)
             }
-            Err(reason) => (self.odometry.skip(reason), Default::default()),
+            Err(reason) => (self.odometry.skip(reason), Default::default(), None),
         };
+        let closed = self.close_loops(timestamp, &status, place);
         let track_ms = start.elapsed().as_secs_f64() * 1e3;
         self.timings.record("prepare", prepare_ms);
         self.timings.record("track", track_ms);
@@ -274,13 +293,53 @@ impl VisualSlam {
                 status: tracking,
                 map: MapChange {
                     keyframes_added: usize::from(keyframe),
-                    loop_closures: 0,
-                    map_moved: false,
+                    loop_closures: usize::from(closed),
+                    map_moved: closed,
                 },
             },
             index,
             frame: status,
         })
+    }
+
+    /// Hands a tracked frame to loop closing (when on); when a loop closed, moves the tracking
+    /// state with the corrected map and says so.
+    fn close_loops(
+        &mut self,
+        timestamp: f64,
+        status: &FrameStatus,
+        place: Option<slamkit_vo::covisibility::PlaceFeatures>,
+    ) -> bool {
+        let Some(loops) = &mut self.loops else {
+            return false;
+        };
+        let restarted = matches!(status, FrameStatus::Initialised { .. });
+        if matches!(status, FrameStatus::Failed(_)) {
+            return false;
+        }
+        match loops.add_frame(timestamp, self.odometry.pose(), place, restarted) {
+            Some(corrected_from_world) => {
+                self.odometry.correct(&corrected_from_world);
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// The trajectory of every tracked frame as loop closure left it (`None` when loop
+    /// closure is off: the poses of the updates are then final).
+    pub fn corrected_trajectory(&self) -> Option<Trajectory> {
+        self.loops
+            .as_ref()
+            .map(|l| l.trajectory(&self.tracked_from_camera))
+    }
+
+    /// The accepted loops, relative poses of the rig's reference camera, and the back end's
+    /// counts (`None` when loop closure is off).
+    pub fn loop_closures(&self) -> Option<(LoopStats, Vec<LoopClosure>)> {
+        self.loops
+            .as_ref()
+            .map(|l| (l.stats(), l.closures(&self.tracked_from_camera)))
     }
 
     /// Records the frame just tracked, at `pose`, as a keyframe of the map, its points moved

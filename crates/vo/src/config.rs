@@ -9,6 +9,7 @@ use slamkit_vision::{
 use crate::depth::{DepthConfig, DepthRegistration};
 use crate::error::VoError;
 use crate::local_map::LocalMapConfig;
+use crate::loop_closure::LoopClosureConfig;
 use crate::motion::MotionConfig;
 
 use crate::voxel_map::VoxelMapConfig;
@@ -80,6 +81,8 @@ pub struct VoConfig {
     pub max_consecutive_failures: usize,
     /// World point map.
     pub voxel_map: VoxelMapConfig,
+    /// Keyframes, place recognition and loop closure (off by default; `slamkit vo --slam`).
+    pub loop_closure: LoopClosureConfig,
 }
 
 impl Default for VoConfig {
@@ -108,6 +111,7 @@ impl Default for VoConfig {
             local_map: LocalMapConfig::default(),
             max_consecutive_failures: 5,
             voxel_map: VoxelMapConfig::default(),
+            loop_closure: LoopClosureConfig::default(),
         }
     }
 }
@@ -121,6 +125,7 @@ impl VoConfig {
         self.motion.validate()?;
         self.local_map.validate()?;
         self.voxel_map.validate()?;
+        self.loop_closure.validate()?;
         if self.max_features == 0 {
             return Err(VoError::config("max_features", 0, "must be > 0"));
         }

@@ -12,6 +12,7 @@ use slamkit_vision::color::{rgb_to_gray, rgb_to_lab_planes};
 use slamkit_vision::{shi_tomasi, Clahe, Descriptor, KltPyramid, Orb, StereoPair};
 
 use crate::config::{FrontendKind, VoConfig};
+use crate::covisibility::PlaceFeatures;
 use crate::depth::{depth_at, lift, DepthConfig};
 use crate::error::VoError;
 use crate::motion::StereoCamera;
@@ -164,6 +165,9 @@ pub struct PreparedFrame {
     pub features: Features,
     /// What the frame adds to the world map.
     pub map_source: MapSource,
+    /// ORB features with depth for place recognition (`loop_closure.enabled` only): the ORB
+    /// front end's own, or those of `loop_closure.orb` for the KLT front end.
+    pub place: Option<PlaceFeatures>,
     gray: GrayImage,
     depth: DepthSource,
     baseline_m: f64,
@@ -176,6 +180,8 @@ pub struct Preprocessor {
     rig: Rig,
     clahe: Option<Clahe>,
     orb: Option<Orb>,
+    /// ORB for place recognition beside the KLT front end.
+    place_orb: Option<Orb>,
 }
 
 impl Preprocessor {
@@ -192,11 +198,15 @@ impl Preprocessor {
         let orb = (config.frontend == FrontendKind::Orb)
             .then(|| Orb::new(config.orb.clone()))
             .transpose()?;
+        let place_orb = (config.loop_closure.enabled && config.frontend == FrontendKind::Klt)
+            .then(|| Orb::new(config.loop_closure.orb.clone()))
+            .transpose()?;
         Ok(Self {
             config: config.clone(),
             rig,
             clahe,
             orb,
+            place_orb,
         })
     }
 
@@ -268,11 +278,15 @@ impl Preprocessor {
             pyramid: None,
             features: Features::default(),
             map_source: MapSource::default(),
+            place: None,
             gray,
             depth,
             baseline_m,
         };
         self.detect(&mut frame)?;
+        if self.config.loop_closure.enabled {
+            frame.place = Some(self.place_features(&frame)?);
+        }
         frame.map_source = MapSource(match (&frame.depth, colors) {
             (DepthSource::Image(depth), Some(color)) => MapInput::Depth {
                 depth: depth.clone(),
@@ -290,6 +304,34 @@ impl Preprocessor {
             Some(c) => c.apply_gray(&rgb_to_lab_planes(color).0),
             None => rgb_to_gray(color),
         }
+    }
+
+    /// The frame's ORB features with depth: the front end's, or ORB's beside KLT.
+    fn place_features(&self, frame: &PreparedFrame) -> Result<PlaceFeatures, FailReason> {
+        let (points, descriptors) = match &self.place_orb {
+            Some(orb) => {
+                let f = orb.detect_and_compute(&frame.gray);
+                let pixels: Vec<Point2<f64>> = f
+                    .keypoints
+                    .iter()
+                    .map(|k| Point2::new(f64::from(k.x), f64::from(k.y)))
+                    .collect();
+                (frame.lift(&pixels, &self.config)?, f.descriptors)
+            }
+            None => (
+                frame.features.points.clone(),
+                frame.features.descriptors.clone(),
+            ),
+        };
+        Ok(points
+            .into_iter()
+            .zip(descriptors)
+            .filter_map(|(p, d)| Some((p?, d)))
+            .fold(PlaceFeatures::default(), |mut acc, (p, d)| {
+                acc.points.push(p);
+                acc.descriptors.push(d);
+                acc
+            }))
     }
 
     fn detect(&self, frame: &mut PreparedFrame) -> Result<(), FailReason> {

@@ -14,6 +14,9 @@
 //!   reprojection error.
 //! * [`odometry`]: frame-to-frame or local-map tracking, failed frames keeping the reference.
 //! * [`local_map`]: features of the recent key frames, positions averaged over observations.
+//! * [`covisibility`]: map points with their observations, the keyframes' covisibility graph.
+//! * [`place_index`]: the online place index over binary descriptors (HBST).
+//! * [`loop_closure`]: loop candidates, temporal consistency, geometric verification.
 //! * [`voxel_map`]: the world point map, merged per voxel, PLY export.
 //! * [`pose_graph`]: the SE(3) pose graph of loop closure, optimised by Levenberg–Marquardt
 //!   with exact SE(3) Jacobians, sparse block elimination and an optional Cauchy kernel.
@@ -23,13 +26,16 @@
 //!   and skipped.
 
 pub mod config;
+pub mod covisibility;
 pub mod depth;
 pub mod error;
 pub mod frame;
 pub mod local_map;
+pub mod loop_closure;
 pub mod metrics;
 pub mod motion;
 pub mod odometry;
+pub mod place_index;
 pub mod pose_graph;
 pub mod registration;
 pub mod spacing;

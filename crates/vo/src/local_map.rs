@@ -226,6 +226,15 @@ impl LocalMap {
         true
     }
 
+    /// Moves every landmark by `new_from_old` (its observations' weighted sum with it).
+    pub fn transform(&mut self, new_from_old: &Pose3) {
+        let r = new_from_old.rotation;
+        let t = new_from_old.translation.vector;
+        for l in self.landmarks.values_mut() {
+            l.weighted_sum = r * l.weighted_sum + t * l.weight;
+        }
+    }
+
     /// Marks landmark `id` as seen in `frame` without adding an observation to its mean; its
     /// descriptor, when given, becomes the latest.
     pub fn touch(&mut self, id: u64, descriptor: Option<Descriptor>, frame: usize) {
@@ -379,6 +388,11 @@ mod tests {
         assert_eq!(l.observations(), 3);
         let mean = Point3::new(1.1, 2.15, 2.95);
         assert!((l.position() - mean).norm() < 1e-12);
+        // a loop closure moves the map: the mean moves with it
+        let moved = Pose3::new(Vector3::new(0.5, -1.0, 2.0), Vector3::new(0.1, 0.7, -0.2));
+        map.transform(&moved);
+        let l = map.get(id).unwrap();
+        assert!((l.position() - moved * mean).norm() < 1e-12);
     }
 
     #[test]

@@ -9,7 +9,7 @@
 
 use nalgebra::Point3;
 use serde::Serialize;
-use slamkit_core::Trajectory;
+use slamkit_core::{Pose3, Trajectory};
 use slamkit_eval::{associate, ate, rpe, Alignment, ErrorStats, EvalError, Pairing, RpeConfig};
 
 /// Accuracy figures of one run.
@@ -82,10 +82,92 @@ pub fn evaluate(estimate: &Trajectory, ground_truth: &Trajectory) -> Result<VoMe
     })
 }
 
+/// A loop closure is wrong when the ground truth's relative pose differs from it by more than
+/// this \[m\] (issue 20's bar)...
+pub const WRONG_CLOSURE_M: f64 = 0.3;
+/// ... or by more than this \[deg\].
+pub const WRONG_CLOSURE_DEG: f64 = 10.0;
+
+/// Loop closures scored against ground truth.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ClosureCheck {
+    /// Closures both of whose times the ground truth covers.
+    pub checked: usize,
+    /// Closures off by more than [`WRONG_CLOSURE_M`] or [`WRONG_CLOSURE_DEG`].
+    pub wrong: usize,
+    /// Largest translation error \[m\] (0 without checked closures).
+    pub max_error_m: f64,
+    /// Largest rotation error \[deg\].
+    pub max_error_deg: f64,
+}
+
+/// Scores loop closures `(query time, candidate time, candidate_from_query)` against the
+/// relative pose of the ground truth (interpolated at the two times).
+pub fn check_closures(closures: &[(f64, f64, Pose3)], ground_truth: &Trajectory) -> ClosureCheck {
+    let mut check = ClosureCheck {
+        checked: 0,
+        wrong: 0,
+        max_error_m: 0.0,
+        max_error_deg: 0.0,
+    };
+    for (query, candidate, candidate_from_query) in closures {
+        let (Some(q), Some(c)) = (
+            ground_truth.interpolate(*query),
+            ground_truth.interpolate(*candidate),
+        ) else {
+            continue;
+        };
+        let error = (c.inverse() * q).inverse() * candidate_from_query;
+        let (m, deg) = (
+            error.translation.vector.norm(),
+            error.rotation.angle().to_degrees(),
+        );
+        check.checked += 1;
+        check.wrong += usize::from(m > WRONG_CLOSURE_M || deg > WRONG_CLOSURE_DEG);
+        check.max_error_m = check.max_error_m.max(m);
+        check.max_error_deg = check.max_error_deg.max(deg);
+    }
+    check
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use slamkit_core::Pose3;
+    use nalgebra::Vector3;
+
+    #[test]
+    fn a_closure_is_wrong_beyond_30_cm_or_10_degrees() {
+        let mut gt = Trajectory::new();
+        for i in 0..11 {
+            let a = f64::from(i) * 0.6;
+            gt.push(
+                f64::from(i),
+                Pose3::new(Vector3::new(a.cos(), a.sin(), 0.0), Vector3::z() * a),
+            );
+        }
+        let truth =
+            |q: f64, c: f64| gt.interpolate(c).unwrap().inverse() * gt.interpolate(q).unwrap();
+        let right = (
+            9.0,
+            1.0,
+            truth(9.0, 1.0) * Pose3::translation(0.1, 0.0, 0.0),
+        );
+        let far = (
+            8.0,
+            2.0,
+            truth(8.0, 2.0) * Pose3::translation(0.0, 0.35, 0.0),
+        );
+        let turned = (
+            7.0,
+            2.0,
+            truth(7.0, 2.0) * Pose3::new(Vector3::zeros(), Vector3::x() * 12f64.to_radians()),
+        );
+        let outside = (50.0, 1.0, Pose3::identity());
+        let check = check_closures(&[right, far, turned, outside], &gt);
+        assert_eq!((check.checked, check.wrong), (3, 2));
+        assert!((check.max_error_m - 0.35).abs() < 1e-9);
+        assert!((check.max_error_deg - 12.0).abs() < 1e-9);
+    }
 
     /// Issue 25 (9): ground truth for the first 20 of 40 frames; the estimate is exact there
     /// and wanders off after. Only the 20 are scored, and the end point is the 20th.

@@ -155,6 +155,17 @@ impl Odometry {
             .collect()
     }
 
+    /// Moves the whole tracking state by `corrected_from_world` (loop closure moved the
+    /// map): the pose, the reference's pose and the local map's landmarks. The motion between
+    /// frames, and so the constant-velocity prediction, is unchanged.
+    pub fn correct(&mut self, corrected_from_world: &Pose3) {
+        self.world_from_camera = corrected_from_world * self.world_from_camera;
+        if let Some(r) = &mut self.reference {
+            r.world_from_camera = corrected_from_world * r.world_from_camera;
+        }
+        self.map.transform(corrected_from_world);
+    }
+
     /// Records a frame that failed before tracking (too dark, sizes that do not fit): the pose
     /// stays.
     pub fn skip(&mut self, reason: FailReason) -> FrameStatus {

@@ -60,6 +60,10 @@ pub struct VoArgs {
     /// README's configuration section).
     #[arg(long)]
     pub config: Option<PathBuf>,
+    /// Visual SLAM: keyframes, place recognition and loop closure over the odometry (the
+    /// `[vo.loop_closure]` settings, on).
+    #[arg(long)]
+    pub slam: bool,
     /// Play the dataset at its frame rate and drop the frames the pipeline cannot take.
     #[arg(long)]
     pub realtime: bool,
@@ -109,6 +113,7 @@ pub fn run(args: &VoArgs) -> anyhow::Result<()> {
         Session::save(&session, path)?;
     }
     let keyframes = session.map().keyframes.len();
+    let loops = session.loop_closures();
     let session = session.finish()?;
     let mut timings = result.timings.clone();
     timings.merge(&session.timings);
@@ -122,6 +127,22 @@ pub fn run(args: &VoArgs) -> anyhow::Result<()> {
             &result.trajectory,
         )?;
     }
+    let loop_closure = loops.map(|(stats, closures)| {
+        let relative: Vec<_> = closures
+            .iter()
+            .map(|c| {
+                (
+                    c.query_timestamp,
+                    c.candidate_timestamp,
+                    c.candidate_from_query,
+                )
+            })
+            .collect();
+        let check = dataset
+            .ground_truth()
+            .map(|gt| slamkit_vo::metrics::check_closures(&relative, gt));
+        json!({ "stats": stats, "closures": closures, "against_ground_truth": check })
+    });
     let metrics = match dataset.ground_truth() {
         Some(gt) => {
             dataset.write_ground_truth_tum(&out.join("groundtruth.tum"))?;
@@ -158,6 +179,7 @@ pub fn run(args: &VoArgs) -> anyhow::Result<()> {
         "timings_ms": timings_json(&timings),
         "peak_rss_bytes": peak_rss_bytes(),
         "metrics": metrics,
+        "loop_closure": loop_closure,
         "frame_status": result.frames,
     });
     write_report(&out, &report)?;
@@ -204,7 +226,8 @@ fn load_config(args: &VoArgs, format: DatasetFormat) -> anyhow::Result<VoConfig>
         .profile
         .as_deref()
         .or_else(|| layout_profile(io_format(format)));
-    let config = settings(base, "vo", profile, args.config.as_deref())?;
+    let mut config = settings(base, "vo", profile, args.config.as_deref())?;
+    config.loop_closure.enabled |= args.slam;
     config.validate().context("checking the settings")?;
     Ok(config)
 }

@@ -64,7 +64,7 @@ pub struct FrameRecord {
 #[derive(Debug)]
 pub struct VisualRun {
     /// One pose per frame the session initialised on or tracked, `world_from_camera` of the
-    /// rig's reference camera. A failed frame (unreadable, or one odometry could not track)
+    /// rig's reference camera (as loop closure left them, when it is on). A failed frame (unreadable, or one odometry could not track)
     /// has none, so scoring skips it rather than counting the pose held over it; its status
     /// is in `frames`.
     pub trajectory: Trajectory,
@@ -131,6 +131,9 @@ where
                     status: u.frame,
                 });
             }
+        }
+        if let Some(corrected) = session.corrected_trajectory() {
+            trajectory = corrected;
         }
         prep.join()
             .map_err(|_| SlamError::Thread("the prepare thread panicked".into()))?;
