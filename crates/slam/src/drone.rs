@@ -30,6 +30,7 @@ pub mod particle_filter;
 pub mod readings;
 pub mod simulated;
 
+use crate::odometry_gate::{OdometryGate, OdometryGateConfig};
 use crate::session::{MapChange, Session, TrackingStatus, Update};
 use crate::SlamError;
 use nalgebra::Point3;
@@ -41,6 +42,7 @@ use slamkit_core::{LaserScan, Observation, Pose2, Pose3, StageTimings, Trajector
 use slamkit_lidar::layers::{
     LayerMap, LayerScanStatus, LayeredEstimate, LayeredIcpSlam, LayeredSlamConfig, LayeredStats,
 };
+use slamkit_lidar::motion::is_finite_pose;
 use slamkit_lidar::rbpf::RbpfConfig;
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -62,6 +64,9 @@ pub struct DroneSlamConfig {
     pub particle_filter: Option<RbpfConfig>,
     /// Finding the drone in a saved map ([`DroneSlam::localise`], [`DroneSlam::resume`]).
     pub in_map: in_map::InMapConfig,
+    /// Jumps in the scans' odometry faster than the drone flies are taken as no motion and
+    /// counted ([`crate::odometry_gate`]).
+    pub odometry_gate: OdometryGateConfig,
 }
 
 /// What the session made of one scan.
@@ -125,6 +130,7 @@ pub struct DroneSlam {
     unplaced: usize,
     /// Localisation in a saved map: the map is not changed.
     frozen: bool,
+    gate: OdometryGate,
 }
 
 impl DroneSlam {
@@ -144,7 +150,9 @@ impl DroneSlam {
             .clone()
             .map(DronePf::new)
             .transpose()?;
+        config.odometry_gate.validate().map_err(SlamError::Config)?;
         Ok(Self {
+            gate: OdometryGate::new(config.odometry_gate.clone()),
             slam: LayeredIcpSlam::new(config.layers.clone())?,
             config,
             map_from_world: map_from_first,
@@ -214,7 +222,11 @@ impl DroneSlam {
     /// reading stored for the next scan or an observation this session does not use.
     pub fn push(&mut self, observation: Observation) -> Option<Update> {
         match observation {
-            Observation::Scan(scan) => Some(self.scan(&scan)),
+            Observation::Scan(mut scan) => {
+                let odometry = scan.odometry.filter(is_finite_pose);
+                scan.odometry = self.gate.filter(scan.timestamp, odometry);
+                Some(self.scan(&scan))
+            }
             Observation::Range(r) => {
                 self.readings.range(r);
                 None
@@ -376,6 +388,11 @@ impl DroneSlam {
     /// Observations of kinds this session does not use (odometry, images), ignored.
     pub fn ignored(&self) -> usize {
         self.ignored
+    }
+
+    /// Odometry readings taken as no motion: jumps faster than `odometry_gate` allows.
+    pub fn odometry_rejected(&self) -> usize {
+        self.gate.rejected()
     }
 
     /// In a saved map: how the search for the drone went (`None` for a new map).

@@ -101,6 +101,7 @@ pub fn run(args: &LidarArgs, ranges: &Path) -> anyhow::Result<()> {
             "processed": counts.processed,
             "skipped": counts.skipped,
             "failed": counts.failed,
+            "odometry_rejected": session.odometry_rejected(),
             "unreadable_lines": log.skipped.len(),
         },
         "readings": readings,

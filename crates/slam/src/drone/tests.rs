@@ -4,6 +4,7 @@ use super::map::layer_keyframes;
 use super::*;
 use crate::map_file::{MapFile, Rig};
 use slamkit_core::Observation;
+use slamkit_lidar::layers::LayeredSlamConfig;
 use slamkit_sim::{SimConfig, Simulation, World};
 
 /// The first `seconds` of the `small` world's simulated flight.
@@ -165,4 +166,40 @@ fn frame_counts_and_layer_grids_cover_every_scan() {
         assert!((l.z_range_m[1] - l.z_range_m[0] - h).abs() < 1e-12);
     }
     assert_eq!(grids.into_layer_maps().len(), session.layer_maps().len());
+}
+
+#[test]
+fn an_odometry_jump_no_drone_can_make_is_taken_as_no_motion() {
+    let config = DroneSlamConfig {
+        layers: LayeredSlamConfig {
+            use_odometry: true,
+            ..LayeredSlamConfig::default()
+        },
+        ..DroneSlamConfig::default()
+    };
+    let clean = flight(20.0);
+    let mut jumped = clean.clone();
+    let scan = jumped
+        .iter_mut()
+        .filter_map(|o| match o {
+            Observation::Scan(s) => Some(s),
+            _ => None,
+        })
+        .nth(100)
+        .unwrap();
+    let odometry = scan.odometry.as_mut().unwrap();
+    odometry.translation.vector.x += 1.0e6;
+    let mut a = DroneSlam::new(config.clone()).unwrap();
+    let mut b = DroneSlam::new(config).unwrap();
+    let (pa, pb) = (run(&mut a, &clean), run(&mut b, &jumped));
+    // one reading off: the jump there and the jump back
+    assert_eq!((a.odometry_rejected(), b.odometry_rejected()), (0, 2));
+    let worst = pa
+        .iter()
+        .zip(&pb)
+        .map(|(u, v)| {
+            (u.pose.unwrap().translation.vector - v.pose.unwrap().translation.vector).norm()
+        })
+        .fold(0.0, f64::max);
+    assert!(worst < 0.2, "the jump moved the estimate by {worst} m");
 }
