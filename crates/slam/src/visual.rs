@@ -359,9 +359,23 @@ impl VisualSlam {
         });
     }
 
-    /// The keyframes so far.
-    pub fn map(&self) -> &VisualMap {
-        &self.map
+    /// The keyframes so far, at their poses as loop closure left them (when on): what
+    /// [`Session::save`] writes.
+    pub fn map(&self) -> VisualMap {
+        let mut map = self.map.clone();
+        if let Some(corrected) = self.corrected_trajectory() {
+            let by_time: std::collections::HashMap<u64, Pose3> = corrected
+                .poses
+                .iter()
+                .map(|p| (p.timestamp.to_bits(), p.pose))
+                .collect();
+            for k in &mut map.keyframes {
+                if let Some(pose) = by_time.get(&k.timestamp.to_bits()) {
+                    k.pose = *pose;
+                }
+            }
+        }
+        map
     }
 
     /// Frame counters so far.
@@ -407,7 +421,7 @@ impl Session for VisualSlam {
             path: path.to_path_buf(),
             source,
         };
-        self.map
+        self.map()
             .to_map_file(rig)
             .map_err(map_error)?
             .save(path)

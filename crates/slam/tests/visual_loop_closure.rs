@@ -56,6 +56,25 @@ fn run(
         })
         .collect();
     let check = check_closures(&relative, gt);
+    // the map a run saves holds its keyframes where loop closure left them
+    let worst = session
+        .map()
+        .keyframes
+        .iter()
+        .map(|k| {
+            let frame = result
+                .trajectory
+                .poses
+                .iter()
+                .find(|p| p.timestamp == k.timestamp)
+                .expect("a keyframe is a tracked frame");
+            (frame.pose.inverse() * k.pose).translation.vector.norm()
+        })
+        .fold(0.0, f64::max);
+    assert!(
+        worst < 1e-6,
+        "a saved keyframe is {worst} m off its corrected pose"
+    );
     let metrics = evaluate(&result.trajectory, gt).unwrap();
     eprintln!(
         "{profile} {frontend:?} --slam: ATE {:.4} m, {stats:?}, {check:?}",
