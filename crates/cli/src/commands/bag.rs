@@ -85,12 +85,17 @@ fn print_info(info: &BagInfo) {
     println!("messages:   {} in {} chunks", info.messages, info.chunks);
     let width = info.topics.iter().map(|t| t.topic.len()).max().unwrap_or(0);
     for t in &info.topics {
-        let extra = match (t.connections, t.latching) {
-            (1, false) => String::new(),
-            (n, latched) => format!(
-                " ({n} connections{})",
-                if latched { ", latched" } else { "" }
-            ),
+        let mut notes = Vec::new();
+        if t.connections > 1 {
+            notes.push(format!("{} connections", t.connections));
+        }
+        if t.latching {
+            notes.push("latched".to_string());
+        }
+        let extra = if notes.is_empty() {
+            String::new()
+        } else {
+            format!(" ({})", notes.join(", "))
         };
         println!(
             "topic:      {:width$}  {:>7} msgs  {}{extra}",
@@ -153,6 +158,13 @@ pub(crate) fn read_log(path: &Path, topics: &TopicArgs) -> anyhow::Result<Carmen
             bag.log.skipped.len(),
             bag.log.skipped[0].line,
             bag.log.skipped[0].reason
+        );
+    }
+    if let slamkit_io::bag::reader::IndexState::Unreadable(why) = &bag.index {
+        eprintln!(
+            "warning: {}: the index is unreadable ({why}); the chunks were read one by one \
+             (a bag cut short loses what followed the cut)",
+            path.display()
         );
     }
     for chunk in &bag.read.damaged_chunks {

@@ -27,7 +27,7 @@
 //! * A message that does not decode is skipped and counted ([`CarmenLog::skipped`]).
 
 use super::messages::{check_type, LaserScanMsg, OdometryMsg, RosMessage, TfMessageMsg};
-use super::reader::{Bag, Order, ReadStats};
+use super::reader::{Bag, IndexState, Order, ReadStats};
 use super::BagError;
 use crate::carmen::{no_return_threshold, CarmenLog, SkipReason, SkippedLine};
 use crate::odometry_bracket::{OdomSample, OdometryBracket};
@@ -83,6 +83,8 @@ pub struct BagScanLog {
     pub mounting: Mounting,
     /// What the bag read went through (damaged chunks, a cut-short file).
     pub read: ReadStats,
+    /// The state of the bag's index (unreadable for a file cut short between records).
+    pub index: IndexState,
 }
 
 /// Reads the lidar log of the bag at `path`.
@@ -163,6 +165,7 @@ pub fn scan_log<R: Read + Seek>(
         odom_topic,
         mounting,
         read,
+        index: bag.index_state().clone(),
     })
 }
 
