@@ -3,7 +3,7 @@
 //! else by walking its chunks.
 
 use super::chunk::Compression;
-use super::reader::{count_by_connection, Bag, IndexState, ReadStats};
+use super::reader::{count_by_connection, Bag, ConnectionSpan, IndexState, ReadStats};
 use super::record::RosTime;
 use super::BagError;
 use std::collections::BTreeMap;
@@ -58,14 +58,18 @@ impl BagInfo {
 
 /// Summarises `bag`: from its index when readable, else from a walk of its chunks.
 pub fn bag_info<R: Read + Seek>(bag: &mut Bag<R>) -> Result<BagInfo, BagError> {
-    let mut per_conn: BTreeMap<u32, (usize, RosTime, RosTime)> = BTreeMap::new();
+    let mut per_conn: BTreeMap<u32, ConnectionSpan> = BTreeMap::new();
     let (chunks, compression, walk) = if *bag.index_state() == IndexState::Indexed {
         for chunk in bag.chunk_infos() {
             for &(conn, count) in &chunk.counts {
-                let e = per_conn.entry(conn).or_insert((0, chunk.start, chunk.end));
-                e.0 += count as usize;
-                e.1 = e.1.min(chunk.start);
-                e.2 = e.2.max(chunk.end);
+                let e = per_conn.entry(conn).or_insert(ConnectionSpan {
+                    messages: 0,
+                    start: chunk.start,
+                    end: chunk.end,
+                });
+                e.messages += count as usize;
+                e.start = e.start.min(chunk.start);
+                e.end = e.end.max(chunk.end);
             }
         }
         (bag.chunk_infos().len(), Vec::new(), None)
@@ -76,7 +80,7 @@ pub fn bag_info<R: Read + Seek>(bag: &mut Bag<R>) -> Result<BagInfo, BagError> {
     };
     let mut topics: BTreeMap<String, TopicInfo> = BTreeMap::new();
     for conn in bag.connections().values() {
-        let count = per_conn.get(&conn.id).map_or(0, |c| c.0);
+        let count = per_conn.get(&conn.id).map_or(0, |c| c.messages);
         let t = topics
             .entry(conn.topic.clone())
             .or_insert_with(|| TopicInfo {
@@ -90,12 +94,12 @@ pub fn bag_info<R: Read + Seek>(bag: &mut Bag<R>) -> Result<BagInfo, BagError> {
         t.messages += count;
         t.connections += 1;
     }
-    let start = per_conn.values().map(|c| c.1).min();
-    let end = per_conn.values().map(|c| c.2).max();
+    let start = per_conn.values().map(|c| c.start).min();
+    let end = per_conn.values().map(|c| c.end).max();
     Ok(BagInfo {
         file: bag.name().to_string(),
         index: bag.index_state().clone(),
-        messages: per_conn.values().map(|c| c.0).sum(),
+        messages: per_conn.values().map(|c| c.messages).sum(),
         topics: topics.into_values().collect(),
         start_s: start.map(RosTime::as_secs_f64),
         end_s: end.map(RosTime::as_secs_f64),

@@ -24,6 +24,17 @@ use std::fs::File;
 use std::io::{BufReader, Read, Seek, SeekFrom};
 use std::path::Path;
 
+/// Connections by id.
+pub type Connections = BTreeMap<u32, Connection>;
+
+/// Messages of one connection and their time span, counted by a walk.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct ConnectionSpan {
+    pub(crate) messages: usize,
+    pub(crate) start: RosTime,
+    pub(crate) end: RosTime,
+}
+
 /// The fields of the bag header record.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
 pub struct BagHeader {
@@ -115,7 +126,7 @@ pub struct Bag<R> {
     len: u64,
     data_start: u64,
     header: BagHeader,
-    connections: BTreeMap<u32, Connection>,
+    connections: Connections,
     chunk_infos: Vec<ChunkInfo>,
     index: IndexState,
 }
@@ -211,7 +222,7 @@ impl<R: Read + Seek> Bag<R> {
 
     /// Connections known so far: all of them once the index is read, else those met by a
     /// read.
-    pub fn connections(&self) -> &BTreeMap<u32, Connection> {
+    pub fn connections(&self) -> &Connections {
         &self.connections
     }
 
@@ -303,7 +314,7 @@ impl<R: Read + Seek> Bag<R> {
     /// `each` (messages without a connection are counted, not handed).
     fn walk(
         &mut self,
-        each: &mut dyn FnMut(&BTreeMap<u32, Connection>, Location, &MessageRecord),
+        each: &mut dyn FnMut(&Connections, Location, &MessageRecord),
     ) -> Result<ReadStats, BagError> {
         let mut stats = ReadStats::default();
         let mut pos = self.data_start;
@@ -472,7 +483,7 @@ fn describe_magic(head: &[u8]) -> String {
 /// Adds an index record (connection or chunk info) to the tables.
 fn index_record(
     rec: &OwnedRecord,
-    connections: &mut BTreeMap<u32, Connection>,
+    connections: &mut Connections,
     chunks: &mut Vec<ChunkInfo>,
 ) -> Result<(), RecordError> {
     let fields = Fields::parse(&rec.header)?;
@@ -525,8 +536,8 @@ fn message_record<'a>(fields: &Fields, data: &'a [u8]) -> Result<MessageRecord<'
 /// table, messages handed to `each` with their offset in the chunk.
 fn chunk_messages(
     bytes: &[u8],
-    connections: &mut BTreeMap<u32, Connection>,
-    each: &mut dyn FnMut(&BTreeMap<u32, Connection>, usize, &MessageRecord),
+    connections: &mut Connections,
+    each: &mut dyn FnMut(&Connections, usize, &MessageRecord),
 ) -> Result<(), RecordError> {
     for record in slice_records(bytes) {
         let record = record.map_err(|(offset, e)| at_chunk_offset(offset, e))?;
@@ -562,13 +573,17 @@ fn at_chunk_offset(offset: usize, e: RecordError) -> RecordError {
 /// Messages per connection counted by a walk (for a bag without a usable index).
 pub(crate) fn count_by_connection<R: Read + Seek>(
     bag: &mut Bag<R>,
-) -> Result<(HashMap<u32, (usize, RosTime, RosTime)>, ReadStats), BagError> {
-    let mut counts: HashMap<u32, (usize, RosTime, RosTime)> = HashMap::new();
+) -> Result<(HashMap<u32, ConnectionSpan>, ReadStats), BagError> {
+    let mut counts: HashMap<u32, ConnectionSpan> = HashMap::new();
     let stats = bag.walk(&mut |_, _, msg| {
-        let entry = counts.entry(msg.conn).or_insert((0, msg.time, msg.time));
-        entry.0 += 1;
-        entry.1 = entry.1.min(msg.time);
-        entry.2 = entry.2.max(msg.time);
+        let entry = counts.entry(msg.conn).or_insert(ConnectionSpan {
+            messages: 0,
+            start: msg.time,
+            end: msg.time,
+        });
+        entry.messages += 1;
+        entry.start = entry.start.min(msg.time);
+        entry.end = entry.end.max(msg.time);
     })?;
     Ok((counts, stats))
 }

@@ -107,9 +107,13 @@ pub fn scan_log<R: Read + Seek>(
         .ok_or_else(|| BagError::Topics {
             file: file.clone(),
             message: format!(
-                "no {} topic (topics: {})",
+                "no {} topic (topics: {}{})",
                 LaserScanMsg::TYPE,
-                topic_list(bag)
+                topic_list(bag),
+                match bag.index_state() {
+                    IndexState::Unreadable(why) => format!("; the index is unreadable: {why}"),
+                    _ => String::new(),
+                }
             ),
         })?;
     let odom_topic = choose_topic::<OdometryMsg>(bag, topics.odom.as_deref(), "--odom-topic")?;
@@ -324,8 +328,8 @@ fn to_laser_scan(msg: &LaserScanMsg) -> Result<LaserScan, String> {
     })
 }
 
-/// Frames met walking up the static tree from `frame`, each with `frame_from_it`... stated
-/// the other way: `ancestor_from_frame`, the frame itself first.
+/// The frames met walking up the static tree from `frame` (itself first), each with
+/// `ancestor_from_frame`.
 fn ancestors(statics: &HashMap<String, (String, Pose3)>, frame: &str) -> Vec<(String, Pose3)> {
     let mut out = vec![(frame.to_string(), Pose3::identity())];
     // A tree deeper than this is a loop in the data.
