@@ -170,12 +170,13 @@ impl<R: Read + Seek> Bag<R> {
                 file: name.to_string(),
                 error,
             })?;
-        let mut magic = [0u8; 13];
-        let got = read_up_to(&mut reader, &mut magic);
-        if got < MAGIC.len() || magic != MAGIC {
+        // 16 bytes: enough to tell the magic of the other kinds of bag apart.
+        let mut head = [0u8; 16];
+        let got = read_up_to(&mut reader, &mut head);
+        if !head[..got].starts_with(MAGIC) {
             return Err(BagError::NotABag {
                 file: name.to_string(),
-                what: describe_magic(&magic[..got]),
+                what: describe_magic(&head[..got]),
             });
         }
         let mut bag = Self {
