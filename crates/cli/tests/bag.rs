@@ -194,3 +194,68 @@ fn bag_info_lists_topics() {
         "{text}"
     );
 }
+
+/// The bags `slamkit-io`'s tests use (written by PyPI `rosbags`, see
+/// `scripts/make_ros1_bag_fixtures.py`).
+fn fixture(name: &str) -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../io/tests/data/ros1")
+        .join(name)
+}
+
+#[test]
+fn bag_errors_are_one_line_and_name_the_choice() {
+    let run = |args: &[&str]| {
+        let out = Command::new(env!("CARGO_BIN_EXE_slamkit"))
+            .args(args)
+            .output()
+            .unwrap();
+        (
+            out.status.code(),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+        )
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("out");
+    let two = fixture("two_lasers.bag");
+    let (code, err) = run(&[
+        "lidar",
+        two.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, Some(1));
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(
+        err.contains("(/scan, /scan_rear): choose one with --scan-topic"),
+        "{err}"
+    );
+    let text = tmp.path().join("log.clf");
+    std::fs::write(&text, "ODOM 0 0 0 0 0 0 1 h 0\n").unwrap();
+    let (code, err) = run(&[
+        "lidar",
+        text.to_str().unwrap(),
+        "--scan-topic",
+        "/scan",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, Some(1));
+    assert!(
+        err.contains("--scan-topic and --odom-topic apply to bags"),
+        "{err}"
+    );
+    let (code, err) = run(&["bag", "info", text.to_str().unwrap()]);
+    assert_eq!(code, Some(1));
+    assert!(err.contains("not a ROS 1 bag"), "{err}");
+    let info = slamkit(&["bag", "info", fixture("robot_lz4.bag").to_str().unwrap()]);
+    for want in [
+        "/scan",
+        "20 msgs  sensor_msgs/LaserScan",
+        "/tf_static",
+        "latched",
+        "indexed",
+    ] {
+        assert!(info.contains(want), "{want}: {info}");
+    }
+}
