@@ -26,8 +26,10 @@ enum Command {
     /// Visual odometry on an RGB-D or stereo dataset folder.
     Vo(commands::vo::VoArgs),
     /// 2D lidar SLAM (ICP or particle filter), or localisation in / continuation of a saved
-    /// map, on a CARMEN log.
+    /// map, on a CARMEN log or a ROS 1 bag.
     Lidar(commands::lidar::LidarArgs),
+    /// What a ROS 1 bag holds: topics, types, counts, time span.
+    Bag(commands::bag::BagArgs),
     /// Inspect and export saved maps (`.skmap`).
     Map(commands::map::MapArgs),
     /// Accuracy of a trajectory against ground truth: ATE, RPE, relations metric.
@@ -46,6 +48,7 @@ fn main() -> ExitCode {
         Command::Demo(args) => commands::demo::run(args),
         Command::Vo(args) => commands::vo::run(args),
         Command::Lidar(args) => commands::lidar::run(args),
+        Command::Bag(args) => commands::bag::run(args),
         Command::Map(args) => commands::map::run(args),
         Command::Eval(args) => commands::eval::run(args),
         Command::Plan(args) => commands::plan::run(args),

@@ -43,9 +43,9 @@
 //! largest real reading is 26.x m (threshold 30), ACES' 49.91 m with 50.00 as no return
 //! (threshold 50), MIT CSAIL's 42.40 m with 81.91 as no return (threshold 80).
 
+use crate::odometry_bracket::{OdomSample, OdometryBracket};
 use crate::time_order::TimeOrder;
 use flate2::bufread::MultiGzDecoder;
-use slamkit_core::pose::wrap_angle;
 use slamkit_core::{LaserScan, Pose2};
 use std::f64::consts::{FRAC_PI_2, PI};
 use std::io::{BufRead, BufReader};
@@ -131,6 +131,15 @@ pub enum SkipReason {
     /// Values are finite but so large that a derived pose overflows.
     #[error("values out of range: {0}")]
     OutOfRange(&'static str),
+    /// A bag message that does not decode as its type (the log was read from a bag: the
+    /// "line" is the message's number, see [`crate::bag::scans`]).
+    #[error("{topic}: {what}")]
+    Undecodable {
+        /// The message's topic.
+        topic: String,
+        /// What is wrong with it.
+        what: String,
+    },
 }
 
 impl SkipReason {
@@ -150,6 +159,7 @@ impl SkipReason {
             Self::BadField { .. } => "bad_field",
             Self::BadBeams(_) => "bad_beams",
             Self::OutOfRange(_) => "out_of_range",
+            Self::Undecodable { .. } => "undecodable_message",
         }
     }
 }
@@ -226,13 +236,6 @@ pub fn parse_carmen<R: BufRead>(mut reader: R, origin: &str) -> Result<CarmenLog
     } else {
         parse_lines(reader, origin)
     }
-}
-
-/// Odometry sample of an `ODOM` line.
-#[derive(Debug, Clone, Copy)]
-struct OdomSample {
-    timestamp: f64,
-    pose: Pose2,
 }
 
 /// One parsed message line.
@@ -536,71 +539,6 @@ fn parse_odom(f: &Fields) -> Result<OdomSample, SkipReason> {
         timestamp: f.num(7)?,
         pose: Pose2::new([pose[0], pose[1]].into(), pose[2]),
     })
-}
-
-/// Ties scans without odometry of their own to the ODOM lines around them in file order.
-#[derive(Default)]
-struct OdometryBracket {
-    /// The last ODOM line read.
-    before: Option<OdomSample>,
-    /// Scans read since then that still need odometry.
-    pending: Vec<usize>,
-}
-
-impl OdometryBracket {
-    fn add_scan(&mut self, scans: &mut Vec<LaserScan>, scan: LaserScan) {
-        if scan.odometry.is_none() {
-            self.pending.push(scans.len());
-        }
-        scans.push(scan);
-    }
-
-    fn add_odom(&mut self, scans: &mut [LaserScan], after: OdomSample) {
-        self.resolve(scans, Some(after));
-        self.before = Some(after);
-    }
-
-    fn finish(&mut self, scans: &mut [LaserScan]) {
-        self.resolve(scans, None);
-    }
-
-    fn resolve(&mut self, scans: &mut [LaserScan], after: Option<OdomSample>) {
-        for i in self.pending.drain(..) {
-            if let Some(scan) = scans.get_mut(i) {
-                scan.odometry = odometry_at(scan.timestamp, self.before, after);
-            }
-        }
-    }
-}
-
-/// Odometry at time `t` from the samples just before and after it in file order: interpolated
-/// when `t` lies between their times, else the nearer in time (or the only one).
-fn odometry_at(t: f64, before: Option<OdomSample>, after: Option<OdomSample>) -> Option<Pose2> {
-    match (before, after) {
-        (Some(a), Some(b)) if a.timestamp <= t && t <= b.timestamp && a.timestamp < b.timestamp => {
-            // Halved so that stamps near ±f64::MAX cannot overflow to inf / inf = NaN.
-            let s = (t / 2.0 - a.timestamp / 2.0) / (b.timestamp / 2.0 - a.timestamp / 2.0);
-            Some(interpolate_pose2(&a.pose, &b.pose, s.clamp(0.0, 1.0)))
-        }
-        (Some(a), Some(b)) => {
-            let nearer = if (t - a.timestamp).abs() <= (b.timestamp - t).abs() {
-                a
-            } else {
-                b
-            };
-            Some(nearer.pose)
-        }
-        (Some(only), None) | (None, Some(only)) => Some(only.pose),
-        (None, None) => None,
-    }
-}
-
-/// Linear interpolation of position and of heading along the shorter arc, `s` in [0, 1];
-/// written as `a·(1−s) + b·s` so that it stays finite for any finite `a`, `b`.
-fn interpolate_pose2(a: &Pose2, b: &Pose2, s: f64) -> Pose2 {
-    let p = a.translation.vector * (1.0 - s) + b.translation.vector * s;
-    let dtheta = wrap_angle(b.rotation.angle() - a.rotation.angle());
-    Pose2::new(p, a.rotation.angle() + s * dtheta)
 }
 
 #[cfg(test)]

@@ -47,3 +47,31 @@ pub fn detect_layout(dir: &Path) -> Result<Option<DatasetFormat>, IoError> {
         });
     Ok(seven.then_some(DatasetFormat::SevenScenes))
 }
+
+/// True when the file at `path` starts like a robot bag: a ROS 1 bag (`#ROSBAG V`), an MCAP
+/// file or an SQLite database (ROS 2 `.db3`); the bag reader then says which it reads
+/// ([`crate::bag`]). Anything else (a CARMEN log, plain or gzip; a missing file) is `false`.
+///
+/// ```
+/// use slamkit_io::layout::is_bag;
+///
+/// let path = std::env::temp_dir().join(format!("slamkit_is_bag_{}.bag", std::process::id()));
+/// std::fs::write(&path, b"#ROSBAG V2.0\n")?;
+/// assert!(is_bag(&path));
+/// std::fs::write(&path, b"RAWLASER1 0 -1.57")?;
+/// assert!(!is_bag(&path));
+/// std::fs::remove_file(&path)?;
+/// # Ok::<(), std::io::Error>(())
+/// ```
+pub fn is_bag(path: &Path) -> bool {
+    use std::io::Read;
+    let mut head = [0u8; 16];
+    let Ok(file) = std::fs::File::open(path) else {
+        return false;
+    };
+    let got = file.take(16).read(&mut head).unwrap_or(0);
+    let head = &head[..got];
+    head.starts_with(b"#ROSBAG V")
+        || head.starts_with(b"\x89MCAP")
+        || head.starts_with(b"SQLite format 3")
+}

@@ -16,6 +16,9 @@
 //!   (read and written), the signals layered drone SLAM takes besides the scans.
 //! * 2D lidar logs: [`carmen`] (CARMEN `.clf`, plain or gzip: scans with wheel odometry) and
 //!   [`mrpt_text`] (text dumps of MRPT rawlogs and ground-truth files).
+//! * [`bag`]: ROS 1 bags (format 2.0: none, bz2 and lz4 chunks, indexed or not): topics,
+//!   messages in storage or time order, `sensor_msgs/LaserScan`, `nav_msgs/Odometry` and
+//!   `tf2_msgs/TFMessage` decoded, and a 2D lidar log with odometry and mounting from a bag.
 //! * [`g2o`]: 3D pose graphs in g2o's text format (`VERTEX_SE3:QUAT`, `EDGE_SE3:QUAT`, `FIX`).
 //! * [`time_order`]: timestamps stepping back in a lidar log, counted; a log mostly out of
 //!   order refused.
@@ -24,6 +27,7 @@
 //! * [`ply`]: point clouds as PLY for any viewer.
 //! * [`error`]: [`IoError`], every variant naming the file, and the line or frame.
 
+pub mod bag;
 pub mod carmen;
 pub mod carmen_writer;
 pub mod dataset;
@@ -37,6 +41,7 @@ pub mod kitti;
 pub mod kitti_writer;
 pub mod layout;
 pub mod mrpt_text;
+mod odometry_bracket;
 pub mod ply;
 pub mod redwood;
 pub mod relations;

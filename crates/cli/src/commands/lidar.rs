@@ -3,8 +3,9 @@
 //! written to the output folder, and the relations metric when the benchmark's `.relations`
 //! file is known.
 
+use crate::commands::bag::TopicArgs;
 use crate::commands::eval::load_relations;
-use crate::commands::{lidar_drone, lidar_mcl};
+use crate::commands::{bag, lidar_drone, lidar_mcl};
 use crate::output::{
     error_chain, peak_rss_bytes, prepare_out_dir, progress_bar, timings_json, write_report,
     Unsuccessful,
@@ -36,8 +37,11 @@ pub enum Method {
 /// Arguments of `slamkit lidar`.
 #[derive(Debug, clap::Args)]
 pub struct LidarArgs {
-    /// CARMEN log (plain or gzip).
+    /// CARMEN log (plain or gzip), or ROS 1 bag (told by its first bytes).
     pub log: PathBuf,
+    /// The bag's topics, when the input is a bag.
+    #[command(flatten)]
+    pub topics: TopicArgs,
     /// SLAM method of a new map.
     #[arg(long, value_enum, default_value = "icp")]
     pub method: Method,
@@ -100,7 +104,7 @@ pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
     let started = Instant::now();
     let config = session_config(args)?;
     let out = prepare_out_dir(&args.out)?;
-    let log = read_log(&args.log)?;
+    let log = read_log(args)?;
     ensure_usable(args, &log, &config.icp)?;
     let load = |path: &Path| -> anyhow::Result<LidarMap> {
         let started = Instant::now();
@@ -251,8 +255,18 @@ fn session_config(args: &LidarArgs) -> anyhow::Result<LidarSlamConfig> {
     Ok(config)
 }
 
-pub(crate) fn read_log(path: &Path) -> anyhow::Result<CarmenLog> {
-    let log = slamkit_io::carmen::read_carmen(path).context("reading log")?;
+pub(crate) fn read_log(args: &LidarArgs) -> anyhow::Result<CarmenLog> {
+    let path = &args.log;
+    let log = if slamkit_io::layout::is_bag(path) {
+        bag::read_log(path, &args.topics)?
+    } else {
+        anyhow::ensure!(
+            !args.topics.any(),
+            "--scan-topic and --odom-topic apply to bags; {} is not one",
+            path.display()
+        );
+        slamkit_io::carmen::read_carmen(path).context("reading log")?
+    };
     if log.scans.is_empty() {
         anyhow::bail!("{} holds no laser scan", path.display());
     }

@@ -38,7 +38,7 @@ pub fn run(args: &LidarArgs, ranges: &Path) -> anyhow::Result<()> {
         });
     }
     let out = prepare_out_dir(&args.out)?;
-    let log = read_log(&args.log)?;
+    let log = read_log(args)?;
     let mut observations: Vec<Observation> = read_ranges(ranges)?
         .into_iter()
         .map(Observation::Range)

@@ -24,7 +24,7 @@ pub fn run_localization(args: &LidarArgs, map_path: &Path) -> anyhow::Result<()>
     let map = load_map_yaml(map_path)
         .with_context(|| format!("loading the map {}", map_path.display()))?;
     let out = prepare_out_dir(&args.out)?;
-    let log = read_log(&args.log)?;
+    let log = read_log(args)?;
     ensure_usable(args, &log, &IcpSlamConfig::default())?;
     let bar = progress_bar(log.scans.len() as u64, "mcl");
     let result = run_mcl(&log.scans, &map, &config, |_| bar.inc(1))

@@ -1,5 +1,6 @@
 //! One module per subcommand: its clap arguments and its `run` function.
 
+pub mod bag;
 pub mod demo;
 pub mod drone_files;
 pub mod eval;
