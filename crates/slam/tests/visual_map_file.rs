@@ -80,7 +80,7 @@ fn saved_keyframes_read_back_identical() {
         let file = MapFile::load(&path).unwrap();
         assert_eq!(file.header.keyframes, 3);
         assert_eq!(
-            &VisualMap::from_map_file(&file, Rig::Rgbd).unwrap(),
+            VisualMap::from_map_file(&file, Rig::Rgbd).unwrap(),
             session.map()
         );
     }
