@@ -20,16 +20,9 @@ use slamkit_core::{Pose3, Trajectory};
 /// \[s\]. Relation stamps equal scan stamps (to 6 decimals) in the benchmark logs.
 pub const RELATION_STAMP_TOLERANCE_S: f64 = 1e-3;
 
-/// One ground-truth relative motion.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct GroundTruthRelation {
-    /// Time of the first pose \[s\].
-    pub t1: f64,
-    /// Time of the second pose \[s\].
-    pub t2: f64,
-    /// Motion from the first pose to the second, in the first pose's frame.
-    pub t1_from_t2: Pose3,
-}
+/// One ground-truth relative motion: the type [`slamkit_io::relations::read_relations`] reads, so
+/// a `.relations` file is scored as read.
+pub use slamkit_io::relations::Relation as GroundTruthRelation;
 
 /// Result of the relations metric; the field names are the `--json` keys of
 /// `slamkit eval relations` (DESIGN.md), plus the squared means and `missing`.

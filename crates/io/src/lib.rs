@@ -22,6 +22,8 @@
 //! * [`relations`]: ground-truth relations of the 2D SLAM benchmark (`*.relations`,
 //!   Kümmerle et al. 2009).
 //! * [`ply`]: point clouds as PLY for any viewer.
+//! * [`output_folder`]: a run's outputs written atomically (temporary file or staging folder,
+//!   then rename), an earlier run's files not mixed with the new ones.
 //! * [`error`]: [`IoError`], every variant naming the file, and the line or frame.
 
 pub mod carmen;
@@ -37,6 +39,7 @@ pub mod kitti;
 pub mod kitti_writer;
 pub mod layout;
 pub mod mrpt_text;
+pub mod output_folder;
 pub mod ply;
 pub mod redwood;
 pub mod relations;

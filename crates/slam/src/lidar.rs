@@ -16,8 +16,11 @@
 //!
 //! Scans from a source (a log, a bag, a driver) go in as [`Observation::Scan`]; odometry comes
 //! with each scan (`LaserScan::odometry`), as in CARMEN logs and `scan`+`odom` pairs in ROS.
+//! [`preflight`] checks a log and the settings before a run (no usable scan; the particle
+//! maps' memory).
 
 pub mod map;
+pub mod preflight;
 
 use crate::map_file::{MapFile, MapFileError};
 use crate::odometry_gate::{OdometryGate, OdometryGateConfig};

@@ -18,13 +18,13 @@
 //! `metrics.layer_localisation`) and `report.html` (all of it on one page, images embedded).
 
 use crate::commands::drone_files::{write_grids, write_ply, LayerFile};
-use crate::output::{peak_rss_bytes, prepare_out_dir, progress_bar, timings_json, write_report};
+use crate::output::{finish, peak_rss_bytes, progress_bar, timings_json};
 use anyhow::Context;
 use nalgebra::Point3;
 use serde_json::json;
-use slamkit_core::Trajectory;
-use slamkit_eval::plot::{plot_errors, ErrorSeries, TopView};
+use slamkit_eval::plot::{plot_position_errors, positions, TopView};
 use slamkit_eval::report_html::{Figure, HtmlReport};
+use slamkit_io::output_folder::OutputFolder;
 use slamkit_io::write_tum;
 use slamkit_map::{save_map_yaml, save_png, OccupancyGridConfig};
 use slamkit_sim::{SimConfig, Simulation, World as SimWorld};
@@ -69,13 +69,22 @@ pub struct DemoArgs {
     pub out: PathBuf,
 }
 
+/// The files and folders a demo run writes in `--out`.
+#[rustfmt::skip]
+const OUTPUTS: &[&str] = &[
+    "trajectory.tum", "groundtruth.tum", "trajectory_pf.tum", "trajectory_vo.tum", "cloud.ply",
+    "map.pgm", "map.yaml", "map.png", "maps", "map_pf.pgm", "map_pf.yaml", "map_pf.png",
+    "errors_icp.png", "errors_pf.png", "errors_vo.png", "rgbd", "report.json", "report.html",
+];
+
 /// A method's line in the table and the page: name, mean and max error \[m\], error plot.
 type MethodLine = (&'static str, f64, f64, PathBuf);
 
 /// Runs `slamkit demo`.
 pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     let started = Instant::now();
-    let out = prepare_out_dir(&args.out)?;
+    let folder = OutputFolder::create(&args.out, OUTPUTS)?;
+    let out = folder.path().to_path_buf();
     let world = SimWorld::builtin(args.world.name())?;
     let sim = Simulation::new(world, SimConfig::default(), args.seed)
         .context("setting up the simulation")?;
@@ -127,16 +136,14 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     let mut methods: Vec<MethodLine> = Vec::new();
     for m in [icp, pf] {
         let png = out.join(format!("errors_{}.png", m.key));
-        let points = |t: &Trajectory| -> Vec<Point3<f64>> {
-            t.poses
-                .iter()
-                .map(|p| Point3::from(p.pose.translation.vector))
-                .collect()
-        };
         let timestamps: Vec<f64> = m.estimate.poses.iter().map(|p| p.timestamp).collect();
-        let (truth, estimate) = (points(&run.ground_truth), points(&m.estimate));
+        let (reference, estimate) = (positions(&run.ground_truth), positions(&m.estimate));
+        let view = TopView {
+            reference: &reference,
+            estimate: &estimate,
+        };
         let title = format!("{}: position error", m.title);
-        plot(&png, &title, (&truth, &estimate), &timestamps, &m.errors_m)?;
+        plot_position_errors(&png, &title, &view, &timestamps, &m.errors_m)?;
         methods.push((m.title, m.mean_m(), m.max_m(), png));
     }
 
@@ -146,12 +153,12 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     write_tum(&out.join("trajectory_vo.tum"), &vo.trajectory)?;
     let vo_plot = out.join("errors_vo.png");
     let a = &vo.ate;
-    let positions = (
-        &a.reference_positions[..],
-        &a.aligned_estimate_positions[..],
-    );
+    let view = TopView {
+        reference: &a.reference_positions,
+        estimate: &a.aligned_estimate_positions,
+    };
     let title = "RGB-D visual odometry: position error (SE(3)-aligned)";
-    plot(&vo_plot, title, positions, &a.timestamps, &a.errors_m)?;
+    plot_position_errors(&vo_plot, title, &view, &a.timestamps, &a.errors_m)?;
     methods.push(("RGB-D visual odometry", a.stats.mean, a.stats.max, vo_plot));
 
     let stats = session.stats();
@@ -201,7 +208,6 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
             "timings_ms": timings_json(&vo.timings),
         },
     });
-    write_report(&out, &report)?;
     let layer_choice = kidnapped::summary(layer_loc.as_ref());
     let path_length_m = run.ground_truth.path_length_m();
     let intro = format!(
@@ -219,6 +225,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         layers: &layer_files,
     };
     write_html(&out.join("report.html"), &page)?;
+    finish(folder, &report)?;
     println!(
         "method                 mean error  max error   (path {path_length_m:.1} m, {} layers)",
         layer_files.len()
@@ -228,29 +235,8 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     }
     println!("RGB-D VO ATE RMSE {:.3} m (SE(3)-aligned)", a.stats.rmse);
     println!("{layer_choice}");
-    println!("outputs in {}", out.display());
+    println!("outputs in {}", args.out.display());
     Ok(())
-}
-
-/// Writes a top view of `reference` and `estimate` positions beside the error over time.
-fn plot(
-    path: &Path,
-    title: &str,
-    (reference, estimate): (&[Point3<f64>], &[Point3<f64>]),
-    timestamps: &[f64],
-    errors: &[f64],
-) -> anyhow::Result<()> {
-    let view = TopView {
-        reference,
-        estimate,
-    };
-    let series = ErrorSeries {
-        title,
-        label: "position error [m]",
-        timestamps,
-        errors,
-    };
-    Ok(plot_errors(path, &view, &series)?)
 }
 
 /// What `report.html` shows.

@@ -211,18 +211,10 @@ fn run_relations(args: &RelationsArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Reads a `.relations` file into the metric's ground-truth type.
+/// Reads a `.relations` file.
 pub fn load_relations(path: &Path) -> anyhow::Result<Vec<GroundTruthRelation>> {
     // The reader's error names the file; the context says only what was being read.
-    Ok(slamkit_io::relations::read_relations(path)
-        .context("reading relations")?
-        .into_iter()
-        .map(|r| GroundTruthRelation {
-            t1: r.t1,
-            t2: r.t2,
-            t1_from_t2: r.t1_from_t2,
-        })
-        .collect())
+    slamkit_io::relations::read_relations(path).context("reading relations")
 }
 
 fn read(path: &Path) -> anyhow::Result<(Trajectory, TrajectoryFormat)> {
@@ -254,14 +246,11 @@ fn load_pair(
     let (gt, gt_format) = read(&args.gt)?;
     stage.set_message(format!("reading {}", args.est.display()));
     let (est, est_format) = read(&args.est)?;
-    let pairing = if gt_format == TrajectoryFormat::Kitti || est_format == TrajectoryFormat::Kitti {
-        Pairing::Index
-    } else {
-        Pairing::NearestTime {
-            max_diff_s: args.max_diff,
-        }
-    };
-    Ok((gt, est, pairing))
+    Ok((
+        gt,
+        est,
+        Pairing::for_formats(gt_format, est_format, args.max_diff),
+    ))
 }
 
 fn print_stats(title: &str, stats: &ErrorStats, json: bool) -> anyhow::Result<()> {

@@ -9,17 +9,19 @@
 
 use crate::commands::drone_files::{run_session, write_grids, write_ply};
 use crate::commands::lidar::{
-    load_config, print_summary, read_log, relations_metrics, LidarArgs, Method,
+    load_config, print_summary, read_log, relations_metrics, LidarArgs, Method, OUTPUTS,
 };
-use crate::output::{peak_rss_bytes, prepare_out_dir, timings_json, write_report};
+use crate::output::{ensure_fits_memory, finish, peak_rss_bytes, timings_json};
 use serde_json::json;
 use slamkit_core::observation::time_ordered;
 use slamkit_core::Observation;
-use slamkit_io::drone_csv::{read_flow, read_imu, read_ranges};
+use slamkit_io::drone_csv::read_observations;
+use slamkit_io::output_folder::OutputFolder;
 use slamkit_io::write_tum;
 use slamkit_lidar::rbpf::RbpfConfig;
 use slamkit_map::{save_map_yaml, save_png, OccupancyGridConfig};
 use slamkit_slam::drone::particle_filter::drone_pf_config;
+use slamkit_slam::lidar::preflight::particle_maps_min_bytes;
 use slamkit_slam::{DroneSlamConfig, Session};
 use std::path::Path;
 use std::time::Instant;
@@ -34,23 +36,14 @@ pub fn run(args: &LidarArgs, ranges: &Path) -> anyhow::Result<()> {
             ..drone_pf_config(args.seed.unwrap_or(RbpfConfig::default().seed))
         });
     }
-    let out = prepare_out_dir(&args.out)?;
+    let folder = OutputFolder::create(&args.out, OUTPUTS)?;
+    let out = folder.path();
     let log = read_log(&args.log)?;
-    let mut observations: Vec<Observation> = read_ranges(ranges)?
-        .into_iter()
-        .map(Observation::Range)
-        .collect();
-    if let Some(path) = &args.imu {
-        observations.extend(read_imu(path)?.into_iter().map(Observation::Imu));
+    if let Some(pf) = &config.particle_filter {
+        ensure_fits_memory(particle_maps_min_bytes(pf, &log.scans), pf.particles)?;
     }
-    if let Some(path) = &args.flow {
-        observations.extend(read_flow(path)?.into_iter().map(Observation::Flow));
-    }
-    let readings = json!({
-        "ranges": observations.iter().filter(|o| matches!(o, Observation::Range(_))).count(),
-        "imu": observations.iter().filter(|o| matches!(o, Observation::Imu(_))).count(),
-        "flow": observations.iter().filter(|o| matches!(o, Observation::Flow(_))).count(),
-    });
+    let readings = read_observations(ranges, args.imu.as_deref(), args.flow.as_deref())?;
+    let mut observations = readings.observations;
     observations.extend(log.scans.iter().cloned().map(Observation::Scan));
     let session = run_session(time_ordered(observations), config.clone())?;
 
@@ -58,7 +51,7 @@ pub fn run(args: &LidarArgs, ranges: &Path) -> anyhow::Result<()> {
     write_tum(&out.join("trajectory.tum"), &trajectory)?;
     let grid_config = OccupancyGridConfig::default();
     let grids = session.layer_grids(&log.scans, &session.map_from_world(), &grid_config)?;
-    let layer_files = write_grids(&out, &grids)?;
+    let layer_files = write_grids(out, &grids)?;
     write_ply(&out.join("cloud.ply"), &session.merged_cloud())?;
     let pf = match (session.particle_filter(), session.pf_trajectory()) {
         (Some(pf), Some(poses)) => {
@@ -87,7 +80,7 @@ pub fn run(args: &LidarArgs, ranges: &Path) -> anyhow::Result<()> {
             "failed": counts.failed,
             "unreadable_lines": log.skipped.len(),
         },
-        "readings": readings,
+        "readings": readings.counts,
         "stats": stats,
         "layers": layer_files
             .iter()
@@ -99,8 +92,8 @@ pub fn run(args: &LidarArgs, ranges: &Path) -> anyhow::Result<()> {
         "peak_rss_bytes": peak_rss_bytes(),
         "metrics": relations_metrics(args, &trajectory)?,
     });
-    write_report(&out, &report)?;
+    finish(folder, &report)?;
     println!("{} height layers", layer_files.len());
-    print_summary(&out, &report);
+    print_summary(&args.out, &report);
     Ok(())
 }

@@ -6,11 +6,12 @@
 //! first and through unknown cells only when that fails. Writes `path.csv` (the waypoints),
 //! `map.png` (the path drawn on the map) and `report.json`.
 
-use crate::output::{peak_rss_bytes, prepare_out_dir, write_report};
+use crate::output::{finish, peak_rss_bytes};
 use anyhow::Context;
 use nalgebra::Point2;
 use serde_json::json;
 use slamkit_io::image_writer::save_rgb_png;
+use slamkit_io::output_folder::OutputFolder;
 use slamkit_map::{load_map_yaml, TriGrid};
 use slamkit_nav::render::draw_path;
 use slamkit_nav::{plan_on_grid, GridPlanner, PlannedPath};
@@ -92,6 +93,8 @@ pub fn run(args: &PlanArgs) -> anyhow::Result<()> {
     let goal = parse_xy(&args.goal, "goal")?;
     let map =
         load_grid(&args.map).with_context(|| format!("reading map {}", args.map.display()))?;
+    let folder = OutputFolder::create(&args.out, &["path.csv", "map.png", "report.json"])?;
+    let out = folder.path();
     let grid = TriGrid::from_occupancy_grid(&map);
     let inflated = grid.inflated(args.inflate_cells);
     let planner = GridPlanner::from(args.planner);
@@ -107,7 +110,6 @@ pub fn run(args: &PlanArgs) -> anyhow::Result<()> {
         )
     })?;
     let plan_ms = plan_started.elapsed().as_secs_f64() * 1e3;
-    let out = prepare_out_dir(&args.out)?;
     write_path_csv(&out.join("path.csv"), &path)?;
     save_rgb_png(
         &out.join("map.png"),
@@ -138,7 +140,13 @@ pub fn run(args: &PlanArgs) -> anyhow::Result<()> {
         "wall_s": started.elapsed().as_secs_f64(),
         "peak_rss_bytes": peak_rss_bytes(),
     });
-    write_report(&out, &report)?;
+    finish(folder, &report)?;
+    if path.cells.len() == 1 {
+        println!(
+            "start and goal lie in one cell of the map ({} m a side): the path is that cell",
+            grid.resolution_m()
+        );
+    }
     println!(
         "path: {:.2} m, {} waypoints{}, {:.1} ms; written to {}",
         path.length_m,
@@ -149,7 +157,7 @@ pub fn run(args: &PlanArgs) -> anyhow::Result<()> {
             ""
         },
         plan_ms,
-        out.display()
+        args.out.display()
     );
     Ok(())
 }
