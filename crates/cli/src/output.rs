@@ -55,6 +55,12 @@ fn proc_kib(file: &str, key: &str) -> Option<u64> {
     line.split_whitespace().nth(1)?.parse().ok()
 }
 
+/// Writes `grid` as `STEM.pgm` + `STEM.yaml` (ROS map_server) and `STEM.png`.
+pub fn write_grid(grid: &slamkit_map::OccupancyGrid, stem: &std::path::Path) -> anyhow::Result<()> {
+    slamkit_map::save_map_yaml(grid, &stem.with_extension("yaml"))?;
+    Ok(slamkit_map::save_png(grid, &stem.with_extension("png"))?)
+}
+
 /// Refuses a run whose particle maps need more memory than this machine has (MemTotal), before
 /// it starts: `bytes` is the least they take ([`particle_maps_min_bytes`], `None` when unknown).
 ///

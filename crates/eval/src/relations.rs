@@ -46,6 +46,29 @@ pub struct RelationsStats {
     pub missing: usize,
 }
 
+/// The metric as `slamkit eval relations` prints it: counts, then translation and rotation
+/// error (mean ± std, and mean squared), one line each.
+impl std::fmt::Display for RelationsStats {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let s = self;
+        writeln!(
+            f,
+            "relations metric: {} relations scored, {} without estimated poses",
+            s.count, s.missing
+        )?;
+        writeln!(
+            f,
+            "  translation  {:>10.7} ± {:.7} m    (mean squared {:.7} m²)",
+            s.trans_mean, s.trans_std, s.trans_sq_mean
+        )?;
+        writeln!(
+            f,
+            "  rotation     {:>10.7} ± {:.7} deg  (mean squared {:.7} deg²)",
+            s.rot_mean_deg, s.rot_std_deg, s.rot_sq_mean_deg2
+        )
+    }
+}
+
 /// Scores `estimate` on `relations`.
 ///
 /// # Errors
@@ -131,6 +154,27 @@ impl<'a> StampIndex<'a> {
 mod tests {
     use super::*;
     use nalgebra::{Translation3, UnitQuaternion, Vector3};
+
+    #[test]
+    fn prints_counts_then_translation_and_rotation() {
+        let stats = RelationsStats {
+            trans_mean: 0.5,
+            trans_std: 0.25,
+            rot_mean_deg: 1.0,
+            rot_std_deg: 0.5,
+            trans_sq_mean: 0.3125,
+            rot_sq_mean_deg2: 1.25,
+            count: 4,
+            missing: 1,
+        };
+        let text = stats.to_string();
+        assert_eq!(
+            text,
+            "relations metric: 4 relations scored, 1 without estimated poses\n  translation   \
+             0.5000000 ± 0.2500000 m    (mean squared 0.3125000 m²)\n  rotation      \
+             1.0000000 ± 0.5000000 deg  (mean squared 1.2500000 deg²)\n"
+        );
+    }
 
     fn planar(x: f64, y: f64, yaw: f64) -> Pose3 {
         Pose3::from_parts(

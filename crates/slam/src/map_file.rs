@@ -18,6 +18,7 @@
 //! truncated or bit-flipped file gives one clear error and never a panic. Writes go to a
 //! temporary file beside the target that is renamed over it once complete and synced: a crash
 //! leaves the old map or the new one, never half of one.
+//! [`info`] describes a file (`slamkit map info`).
 
 pub mod codec;
 pub mod info;

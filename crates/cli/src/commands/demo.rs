@@ -18,7 +18,7 @@
 //! `metrics.layer_localisation`) and `report.html` (all of it on one page, images embedded).
 
 use crate::commands::drone_files::{write_grids, write_ply, LayerFile};
-use crate::output::{finish, peak_rss_bytes, progress_bar, timings_json};
+use crate::output::{finish, peak_rss_bytes, progress_bar, timings_json, write_grid};
 use anyhow::Context;
 use nalgebra::Point3;
 use serde_json::json;
@@ -26,41 +26,21 @@ use slamkit_eval::plot::{plot_position_errors, positions, TopView};
 use slamkit_eval::report_html::{Figure, HtmlReport};
 use slamkit_io::output_folder::OutputFolder;
 use slamkit_io::write_tum;
-use slamkit_map::{save_map_yaml, save_png, OccupancyGridConfig};
-use slamkit_sim::{SimConfig, Simulation, World as SimWorld};
+use slamkit_map::OccupancyGridConfig;
+use slamkit_sim::{SimConfig, Simulation, World};
 use slamkit_slam::drone::kidnapped;
 use slamkit_slam::drone::simulated::{flight_config, SimulatedFlight};
 use slamkit_slam::visual::simulated::run_simulated_rgbd;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// Built-in worlds.
-#[derive(Debug, Clone, Copy, clap::ValueEnum)]
-pub enum World {
-    /// 5 × 5 m, 1 m high, boxes and cylinders.
-    Small,
-    /// 10 × 10 m, 2.4 m high, more obstacles and a ramp.
-    Large,
-    /// 12.9 × 7.7 m, 2.5 m high, furnished.
-    Office,
-}
-
-impl World {
-    fn name(self) -> &'static str {
-        match self {
-            World::Small => "small",
-            World::Large => "large",
-            World::Office => "office",
-        }
-    }
-}
-
 /// Arguments of `slamkit demo`.
 #[derive(Debug, clap::Args)]
 pub struct DemoArgs {
-    /// Built-in world.
-    #[arg(long, value_enum, default_value = "small")]
-    pub world: World,
+    /// Built-in world: `small` (5 × 5 m, 1 m high, boxes and cylinders), `large` (10 × 10 m,
+    /// 2.4 m high, more obstacles and a ramp) or `office` (12.9 × 7.7 m, 2.5 m high, furnished).
+    #[arg(long, default_value = "small", value_parser = ["small", "large", "office"])]
+    pub world: String,
     /// Seed of the simulation.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -85,13 +65,13 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     let started = Instant::now();
     let folder = OutputFolder::create(&args.out, OUTPUTS)?;
     let out = folder.path().to_path_buf();
-    let world = SimWorld::builtin(args.world.name())?;
+    let world = World::builtin(&args.world)?;
     let sim = Simulation::new(world, SimConfig::default(), args.seed)
         .context("setting up the simulation")?;
     println!(
         "simulating a {:.0} s flight through the `{}` world (seed {})",
         sim.duration_s(),
-        args.world.name(),
+        args.world,
         args.seed
     );
     let run = sim.lidar_run();
@@ -130,8 +110,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     write_ply(&out.join("cloud.ply"), &cloud)?;
     write_tum(&out.join("trajectory_pf.tum"), &pf.estimate)?;
     if let Some(grid) = pf_filter.map() {
-        save_map_yaml(grid, &out.join("map_pf.yaml"))?;
-        save_png(grid, &out.join("map_pf.png"))?;
+        write_grid(grid, &out.join("map_pf"))?;
     }
     let mut methods: Vec<MethodLine> = Vec::new();
     for m in [icp, pf] {
@@ -164,7 +143,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     let stats = session.stats();
     let counts = session.frame_counts();
     let report = json!({
-        "input": { "world": args.world.name(), "seed": args.seed, "duration_s": sim.duration_s() },
+        "input": { "world": args.world, "seed": args.seed, "duration_s": sim.duration_s() },
         "config": { "sim": sim.config, "icp": config.layers, "pf": config.particle_filter },
         "frames": {
             "read": run.scans.len(),
@@ -217,7 +196,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         args.seed
     );
     let page = Page {
-        title: format!("slamkit demo: {} world", args.world.name()),
+        title: format!("slamkit demo: {} world", args.world),
         intro,
         methods: &methods,
         layer_choice: &layer_choice,

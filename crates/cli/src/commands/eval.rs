@@ -11,7 +11,7 @@ use slamkit_core::Trajectory;
 use slamkit_eval::plot::{plot_errors, ErrorSeries, TopView};
 use slamkit_eval::{
     ate, relations_error, rpe, Alignment, AteResult, DeltaUnit, ErrorStats, GroundTruthRelation,
-    Pairing, RelationsStats, RpeConfig, DEFAULT_MAX_DIFF_S,
+    Pairing, RpeConfig, DEFAULT_MAX_DIFF_S,
 };
 use slamkit_io::{read_trajectory, TrajectoryFormat};
 use std::path::{Path, PathBuf};
@@ -206,7 +206,7 @@ fn run_relations(args: &RelationsArgs) -> anyhow::Result<()> {
     if args.json {
         println!("{}", serde_json::to_string(&stats)?);
     } else {
-        print_relations(&stats);
+        print!("{stats}");
     }
     Ok(())
 }
@@ -256,33 +256,8 @@ fn load_pair(
 fn print_stats(title: &str, stats: &ErrorStats, json: bool) -> anyhow::Result<()> {
     if json {
         println!("{}", serde_json::to_string(stats)?);
-        return Ok(());
-    }
-    println!("{title}, {} pairs", stats.pairs);
-    for (name, value) in [
-        ("rmse", stats.rmse),
-        ("mean", stats.mean),
-        ("median", stats.median),
-        ("std", stats.std),
-        ("min", stats.min),
-        ("max", stats.max),
-    ] {
-        println!("  {name:<7}{value:>12.6} m");
+    } else {
+        print!("{title}, {} pairs\n{stats}", stats.pairs);
     }
     Ok(())
-}
-
-fn print_relations(s: &RelationsStats) {
-    println!(
-        "relations metric: {} relations scored, {} without estimated poses",
-        s.count, s.missing
-    );
-    println!(
-        "  translation  {:>10.7} ± {:.7} m    (mean squared {:.7} m²)",
-        s.trans_mean, s.trans_std, s.trans_sq_mean
-    );
-    println!(
-        "  rotation     {:>10.7} ± {:.7} deg  (mean squared {:.7} deg²)",
-        s.rot_mean_deg, s.rot_std_deg, s.rot_sq_mean_deg2
-    );
 }

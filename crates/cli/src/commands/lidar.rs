@@ -7,7 +7,7 @@ use crate::commands::eval::load_relations;
 use crate::commands::{lidar_drone, lidar_mcl};
 use crate::output::{
     ensure_fits_memory, error_chain, finish, peak_rss_bytes, progress_bar, timings_json,
-    Unsuccessful,
+    write_grid, Unsuccessful,
 };
 use crate::settings::{settings, with_file};
 use anyhow::Context;
@@ -17,11 +17,9 @@ use serde_json::json;
 use slamkit_core::{Pose2, Trajectory};
 use slamkit_io::carmen::CarmenLog;
 use slamkit_io::output_folder::OutputFolder;
-use slamkit_map::{save_map_yaml, save_png};
 use slamkit_slam::lidar::preflight::{ensure_usable, particle_maps_min_bytes};
 use slamkit_slam::lidar::LidarMap;
 use slamkit_slam::{LidarMethod, LidarSlam, LidarSlamConfig};
-use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -116,11 +114,11 @@ pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
     let out = folder.path();
     let log = read_log(&args.log)?;
     ensure_usable(&log.scans, &config.icp).context(args.log.display().to_string())?;
-    if config.method == LidarMethod::Rbpf && args.localize.is_none() && args.continue_map.is_none()
-    {
-        let bytes = particle_maps_min_bytes(&config.rbpf, &log.scans);
-        ensure_fits_memory(bytes, config.rbpf.particles)?;
-    }
+    let new_map = args.localize.is_none() && args.continue_map.is_none();
+    let particle_maps_min_bytes = (new_map && config.method == LidarMethod::Rbpf)
+        .then(|| particle_maps_min_bytes(&config.rbpf, &log.scans))
+        .flatten();
+    ensure_fits_memory(particle_maps_min_bytes, config.rbpf.particles)?;
     let load = |path: &Path| -> anyhow::Result<LidarMap> {
         let started = Instant::now();
         let (map, _) = LidarMap::load(path)?;
@@ -161,8 +159,7 @@ pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
         slamkit_io::trajectory_file::write_tum(&path, &session.map().trajectory())?;
     }
     let grid = session.output_grid(&log.scans)?;
-    save_map_yaml(&grid, &out.join("map.yaml"))?;
-    save_png(&grid, &out.join("map.png"))?;
+    write_grid(&grid, &out.join("map"))?;
     let map_file = session.map_file()?;
     for path in std::iter::once(out.join("map.skmap")).chain(args.save_map.clone()) {
         map_file
@@ -186,13 +183,14 @@ pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
             "failed": counts.failed,
             "unreadable_lines": log.skipped.len(),
         },
-        "scans": scan_counts(&log, &session),
+        "scans": session.scan_counts(&log),
         "session": session.stats(),
         "stats": session.method_stats(),
         "wall_seconds": started.elapsed().as_secs_f64(),
         "session_seconds": session_seconds,
         "timings_ms": timings_json(&session.timings()),
         "peak_rss_bytes": peak_rss_bytes(),
+        "particle_maps_min_bytes": particle_maps_min_bytes,
         "metrics": relations_metrics(args, &trajectory)?,
     });
     finish(folder, &report)?;
@@ -257,28 +255,6 @@ pub(crate) fn read_log(path: &Path) -> anyhow::Result<CarmenLog> {
     Ok(log)
 }
 
-/// Scans read and processed, and the broken ones skipped: scans the mapper could not use, by
-/// reason, and log lines the reader could not parse (truncated, NaN, garbage), by reason.
-fn scan_counts(log: &CarmenLog, session: &LidarSlam) -> serde_json::Value {
-    let mut unreadable: BTreeMap<&str, usize> = BTreeMap::new();
-    for line in &log.skipped {
-        *unreadable.entry(line.reason.key()).or_default() += 1;
-    }
-    let broken = &session.method_stats()["skipped_broken"];
-    let total: u64 = broken.as_object().map_or(0, |reasons| {
-        reasons.values().filter_map(|v| v.as_u64()).sum()
-    });
-    json!({
-        "read": log.scans.len(),
-        "processed": session.frame_counts().processed,
-        "skipped_broken": total,
-        "skipped_broken_reasons": broken,
-        "unreadable_lines": log.skipped.len(),
-        "unreadable_line_reasons": unreadable,
-        "time_order": log.time_order,
-    })
-}
-
 /// A method's settings: its defaults, the profile's `[section]`, the `--config` file.
 pub(crate) fn load_config<C: Serialize + DeserializeOwned + Default>(
     args: &LidarArgs,
@@ -293,7 +269,7 @@ pub(crate) fn load_config<C: Serialize + DeserializeOwned + Default>(
 }
 
 /// The relations metric of `trajectory` for report.json; when scoring fails, the error in
-/// `error` ([`write_report`] writes the report, then fails with it).
+/// `error` ([`finish`](crate::output::finish) writes the report, then fails with it).
 pub(crate) fn relations_metrics(
     args: &LidarArgs,
     trajectory: &Trajectory,

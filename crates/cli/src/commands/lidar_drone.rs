@@ -11,7 +11,7 @@ use crate::commands::drone_files::{run_session, write_grids, write_ply};
 use crate::commands::lidar::{
     load_config, print_summary, read_log, relations_metrics, LidarArgs, Method, OUTPUTS,
 };
-use crate::output::{ensure_fits_memory, finish, peak_rss_bytes, timings_json};
+use crate::output::{ensure_fits_memory, finish, peak_rss_bytes, timings_json, write_grid};
 use serde_json::json;
 use slamkit_core::observation::time_ordered;
 use slamkit_core::Observation;
@@ -19,7 +19,7 @@ use slamkit_io::drone_csv::read_observations;
 use slamkit_io::output_folder::OutputFolder;
 use slamkit_io::write_tum;
 use slamkit_lidar::rbpf::RbpfConfig;
-use slamkit_map::{save_map_yaml, save_png, OccupancyGridConfig};
+use slamkit_map::OccupancyGridConfig;
 use slamkit_slam::drone::particle_filter::drone_pf_config;
 use slamkit_slam::lidar::preflight::particle_maps_min_bytes;
 use slamkit_slam::{DroneSlamConfig, Session};
@@ -57,8 +57,7 @@ pub fn run(args: &LidarArgs, ranges: &Path) -> anyhow::Result<()> {
         (Some(pf), Some(poses)) => {
             write_tum(&out.join("trajectory_pf.tum"), &poses)?;
             if let Some(grid) = pf.map() {
-                save_map_yaml(grid, &out.join("map_pf.yaml"))?;
-                save_png(grid, &out.join("map_pf.png"))?;
+                write_grid(grid, &out.join("map_pf"))?;
             }
             json!({ "stats": pf.stats(), "timings_ms": timings_json(pf.timings()) })
         }

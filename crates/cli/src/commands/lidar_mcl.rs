@@ -6,13 +6,13 @@
 use crate::commands::lidar::{
     load_config, print_summary, read_log, relations_metrics, LidarArgs, OUTPUTS,
 };
-use crate::output::{finish, peak_rss_bytes, progress_bar, timings_json, Unsuccessful};
+use crate::output::{finish, peak_rss_bytes, progress_bar, timings_json, write_grid, Unsuccessful};
 use anyhow::Context;
 use serde_json::json;
 use slamkit_io::output_folder::OutputFolder;
 use slamkit_lidar::icp_slam::IcpSlamConfig;
 use slamkit_lidar::mcl::{run_mcl, MclConfig};
-use slamkit_map::{load_map_yaml, save_map_yaml, save_png};
+use slamkit_map::load_map_yaml;
 use slamkit_slam::lidar::preflight::ensure_usable;
 use std::path::Path;
 use std::time::Instant;
@@ -33,8 +33,7 @@ pub fn run_localization(args: &LidarArgs, map_path: &Path) -> anyhow::Result<()>
     bar.finish_and_clear();
 
     slamkit_io::trajectory_file::write_tum(&out.join("trajectory.tum"), &result.trajectory)?;
-    save_map_yaml(&map, &out.join("map.yaml"))?;
-    save_png(&map, &out.join("map.png"))?;
+    write_grid(&map, &out.join("map"))?;
     let s = &result.stats;
     let report = json!({
         "input": args.log,

@@ -1,9 +1,10 @@
 //! `slamkit map info|export`: what a `.skmap` file holds, and its contents as files any tool
 //! opens.
 
+use crate::output::write_grid;
 use anyhow::Context;
 use slamkit_io::output_folder::OutputFolder;
-use slamkit_map::{save_map_yaml, save_png, OccupancyGridConfig};
+use slamkit_map::OccupancyGridConfig;
 use slamkit_slam::lidar::LidarMap;
 use slamkit_slam::map_file::info::MapInfo;
 use slamkit_slam::map_file::{MapFile, Rig};
@@ -92,8 +93,7 @@ fn export(file: &Path, out: &Path) -> anyhow::Result<()> {
             let lidar = LidarMap::from_file(&map)
                 .with_context(|| format!("map file {}", file.display()))?;
             let grid = lidar.grid(OccupancyGridConfig::default())?;
-            save_map_yaml(&grid, &out.join("map.yaml"))?;
-            save_png(&grid, &out.join("map.png"))?;
+            write_grid(&grid, &out.join("map"))?;
             let cloud = lidar.cloud();
             let comment = format!("slamkit map export of {}", file.display());
             slamkit_io::ply::write_ply(&out.join("cloud.ply"), &cloud, &comment)?;

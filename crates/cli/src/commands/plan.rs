@@ -8,6 +8,7 @@
 
 use crate::output::{finish, peak_rss_bytes};
 use anyhow::Context;
+use clap::builder::{PossibleValuesParser, TypedValueParser};
 use nalgebra::Point2;
 use serde_json::json;
 use slamkit_io::image_writer::save_rgb_png;
@@ -18,24 +19,6 @@ use slamkit_nav::{plan_on_grid, GridPlanner, PlannedPath};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-
-/// Grid planners.
-#[derive(Debug, Clone, Copy, clap::ValueEnum)]
-pub enum Planner {
-    /// Breadth-first search, 8-neighbourhood.
-    Bfs,
-    /// A* with the octile heuristic.
-    Astar,
-}
-
-impl From<Planner> for GridPlanner {
-    fn from(p: Planner) -> Self {
-        match p {
-            Planner::Bfs => GridPlanner::Bfs,
-            Planner::Astar => GridPlanner::Astar,
-        }
-    }
-}
 
 /// The occupancy grid of a ROS map_server YAML, or of a `.skmap` (rebuilt from its keyframes).
 fn load_grid(path: &Path) -> anyhow::Result<slamkit_map::OccupancyGrid> {
@@ -58,9 +41,10 @@ pub struct PlanArgs {
     /// Goal position in map coordinates, `X,Y` (m).
     #[arg(long, allow_hyphen_values = true)]
     pub goal: String,
-    /// Planner.
-    #[arg(long, value_enum, default_value = "astar")]
-    pub planner: Planner,
+    /// Planner: `astar` (A* with the octile heuristic) or `bfs` (breadth-first search,
+    /// 8-neighbourhood).
+    #[arg(long, default_value = "astar", value_parser = planner_parser())]
+    pub planner: GridPlanner,
     /// Obstacles grow by this many cells (Chebyshev), the robot's radius: 2 gives a 5 × 5
     /// footprint.
     #[arg(long, default_value_t = 2)]
@@ -68,6 +52,13 @@ pub struct PlanArgs {
     /// Output folder.
     #[arg(long, default_value = "out/plan")]
     pub out: PathBuf,
+}
+
+fn planner_parser() -> impl TypedValueParser<Value = GridPlanner> {
+    PossibleValuesParser::new(["bfs", "astar"]).map(|s| match s.as_str() {
+        "bfs" => GridPlanner::Bfs,
+        _ => GridPlanner::Astar,
+    })
 }
 
 /// Parses `X,Y` in metres.
@@ -97,7 +88,7 @@ pub fn run(args: &PlanArgs) -> anyhow::Result<()> {
     let out = folder.path();
     let grid = TriGrid::from_occupancy_grid(&map);
     let inflated = grid.inflated(args.inflate_cells);
-    let planner = GridPlanner::from(args.planner);
+    let planner = args.planner;
     let plan_started = Instant::now();
     let path = plan_on_grid(&inflated, &start, &goal, planner).with_context(|| {
         format!(

@@ -36,15 +36,15 @@ pub struct SimArgs {
     /// path.
     #[arg(long, value_enum, default_value = "drone")]
     pub robot: Robot,
-    /// Simulate only the first this many seconds of the run \[s\].
-    #[arg(long)]
+    /// Simulate only the first SECONDS of the run.
+    #[arg(long, value_name = "SECONDS")]
     pub duration: Option<f64>,
     /// Named profile of the robot (or a profile file `X.toml`): its `[sim]` settings.
     #[arg(long)]
     pub profile: Option<String>,
-    /// TOML file with simulation settings laid over the profile's (fields of SimConfig, such
-    /// as `[rgbd] rate_hz = 15` or `[diff_drive] speed_mps = 0.25`); `--robot` wins over its
-    /// `robot`.
+    /// TOML file with simulation settings laid over the profile's (the fields report.json
+    /// shows under `config`, such as `[rgbd] rate_hz = 15` or `[diff_drive] speed_mps = 0.25`);
+    /// `--robot` wins over its `robot`.
     #[arg(long)]
     pub config: Option<PathBuf>,
     /// Seed of every random choice.

@@ -70,8 +70,8 @@ pub struct VoArgs {
     /// `kinect-v1` for 7scenes, none for tum and redwood).
     #[arg(long)]
     pub profile: Option<String>,
-    /// TOML file with settings laid over the profile's (the fields of VoConfig, see the
-    /// README's configuration section).
+    /// TOML file with settings laid over the profile's (the fields report.json shows under
+    /// `config`; see the README's configuration section).
     #[arg(long)]
     pub config: Option<PathBuf>,
     /// Play the dataset at its frame rate and drop the frames the pipeline cannot take.

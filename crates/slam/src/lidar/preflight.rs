@@ -109,7 +109,7 @@ mod tests {
                 particles: 1,
                 ..config.clone()
             },
-            &[scan.clone()],
+            std::slice::from_ref(&scan),
         )
         .unwrap();
         // A 4 m room at 5 cm seen from its centre covers the 2 × 2 tiles (64 cells, 3.2 m a
