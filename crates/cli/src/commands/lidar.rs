@@ -269,7 +269,7 @@ pub(crate) fn load_config<C: Serialize + DeserializeOwned + Default>(
 }
 
 /// The relations metric of `trajectory` for report.json; when scoring fails, the error in
-/// `error` ([`finish`](crate::output::finish) writes the report, then fails with it).
+/// `error` ([`finish`] writes the report, then fails with it).
 pub(crate) fn relations_metrics(
     args: &LidarArgs,
     trajectory: &Trajectory,
