@@ -1,9 +1,9 @@
-//! What every command shares for its outputs: the output folder, progress bars, report.json,
+//! What every command shares for its outputs: progress bars, report.json and the end of a run,
 //! peak memory, and one-line error messages.
 
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
-use std::path::{Path, PathBuf};
+use slamkit_io::output_folder::OutputFolder;
 
 /// Formats an error and its causes on one line: `outer: cause: root cause`.
 pub fn error_chain(err: &anyhow::Error) -> String {
@@ -31,24 +31,6 @@ impl std::error::Error for Unsuccessful {}
 /// Exit code of an [`Unsuccessful`] run.
 pub const UNSUCCESSFUL_EXIT: u8 = 3;
 
-/// Creates the output folder (and its parents) and checks that files can be written in it,
-/// so a run does not fail at its end for want of a place to put its results.
-pub fn prepare_out_dir(dir: &Path) -> anyhow::Result<PathBuf> {
-    anyhow::ensure!(
-        !dir.exists() || dir.is_dir(),
-        "output folder {} is a file",
-        dir.display()
-    );
-    std::fs::create_dir_all(dir)
-        .with_context(|| format!("creating output folder {}", dir.display()))?;
-    let probe = dir.join(".slamkit-write-check");
-    std::fs::write(&probe, b"")
-        .with_context(|| format!("output folder {} is not writable", dir.display()))?;
-    std::fs::remove_file(&probe)
-        .with_context(|| format!("output folder {} is not writable", dir.display()))?;
-    Ok(dir.to_path_buf())
-}
-
 /// A progress bar over `len` items, drawn on stderr; hidden when stderr is not a terminal.
 pub fn progress_bar(len: u64, what: &str) -> ProgressBar {
     let bar = ProgressBar::new(len);
@@ -63,21 +45,61 @@ pub fn progress_bar(len: u64, what: &str) -> ProgressBar {
 
 /// Peak resident memory of this process in bytes (VmHWM from /proc), when the OS tells it.
 pub fn peak_rss_bytes() -> Option<u64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
-    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kib * 1024)
+    proc_kib("/proc/self/status", "VmHWM:").map(|kib| kib * 1024)
 }
 
-/// Writes `report` as pretty JSON to `dir/report.json`, atomically (a reader sees the old
-/// report or the whole new one). A report whose `metrics.error` is set (scoring failed) is
-/// written, then returned as the run's error.
-pub fn write_report(dir: &Path, report: &serde_json::Value) -> anyhow::Result<()> {
-    let path = dir.join("report.json");
+/// A `KEY: N kB` value of a /proc file, in KiB.
+fn proc_kib(file: &str, key: &str) -> Option<u64> {
+    let text = std::fs::read_to_string(file).ok()?;
+    let line = text.lines().find(|l| l.starts_with(key))?;
+    line.split_whitespace().nth(1)?.parse().ok()
+}
+
+/// Writes `grid` as `STEM.pgm` + `STEM.yaml` (ROS map_server) and `STEM.png`.
+pub fn write_grid(grid: &slamkit_map::OccupancyGrid, stem: &std::path::Path) -> anyhow::Result<()> {
+    slamkit_map::save_map_yaml(grid, &stem.with_extension("yaml"))?;
+    Ok(slamkit_map::save_png(grid, &stem.with_extension("png"))?)
+}
+
+/// Refuses a run whose particle maps need more memory than this machine has (MemTotal), before
+/// it starts: `bytes` is the least they take ([`particle_maps_min_bytes`], `None` when unknown).
+///
+/// [`particle_maps_min_bytes`]: slamkit_slam::lidar::preflight::particle_maps_min_bytes
+pub fn ensure_fits_memory(bytes: Option<u64>, particles: usize) -> anyhow::Result<()> {
+    let limit = proc_kib("/proc/meminfo", "MemTotal:").map(|kib| kib * 1024);
+    let (Some(bytes), Some(limit)) = (bytes, limit) else {
+        return Ok(());
+    };
+    anyhow::ensure!(
+        bytes <= limit,
+        "{particles} particles need at least {:.1} GB for their maps ({:.2} MB each: the grid \
+         tiles one scan covers), more than this machine's {:.1} GB of memory; use fewer particles",
+        bytes as f64 / 1e9,
+        bytes as f64 / particles.max(1) as f64 / 1e6,
+        limit as f64 / 1e9
+    );
+    Ok(())
+}
+
+/// Ends a run: writes `report` as pretty JSON to `report.json` and moves every output into
+/// the output folder (each atomically; see [`OutputFolder`]), removing the files an earlier
+/// run left there that this one did not write (said on stderr). A report whose
+/// `metrics.error` is set (scoring failed) is written, then returned as the run's error.
+pub fn finish(folder: OutputFolder, report: &serde_json::Value) -> anyhow::Result<()> {
     let text = serde_json::to_string_pretty(report).context("serialising report")?;
-    slamkit_slam::map_file::write_atomically(&path, (text + "\n").as_bytes())
-        .with_context(|| format!("writing {}", path.display()))?;
+    std::fs::write(folder.path().join("report.json"), text + "\n")
+        .with_context(|| format!("writing report.json in {}", folder.dir().display()))?;
+    let dir = folder.dir().to_path_buf();
+    let removed = folder.commit()?;
+    if !removed.is_empty() {
+        eprintln!(
+            "note: removed from {} what an earlier run wrote and this one did not: {}",
+            dir.display(),
+            removed.join(", ")
+        );
+    }
     if let Some(error) = report["metrics"]["error"].as_str() {
+        let path = dir.join("report.json");
         anyhow::bail!("{error} (the rest of the run is in {})", path.display());
     }
     Ok(())

@@ -37,17 +37,23 @@ fn assert_near(json: &serde_json::Value, key: &str, expected: f64, tol: f64) {
     );
 }
 
+/// The paths of two files of evo's test data, or `None` (test skipped) without the data.
+fn evo_files(test: &str, gt: &str, est: &str) -> Option<(String, String)> {
+    let dir = data(test, "trajectories/evo_test_data")?;
+    let path = |name: &str| dir.join(name).to_str().unwrap().to_string();
+    Some((path(gt), path(est)))
+}
+
 #[test]
 fn ate_and_rpe_match_evo_on_fr1_xyz() {
-    let Some(dir) = data(
+    let Some((gt, est)) = evo_files(
         "ate_and_rpe_match_evo_on_fr1_xyz",
-        "trajectories/evo_test_data",
+        "freiburg1_xyz-groundtruth.txt",
+        "freiburg1_xyz-rgbdslam.txt",
     ) else {
         return;
     };
-    let gt = dir.join("freiburg1_xyz-groundtruth.txt");
-    let est = dir.join("freiburg1_xyz-rgbdslam.txt");
-    let (gt, est) = (gt.to_str().unwrap(), est.to_str().unwrap());
+    let (gt, est) = (gt.as_str(), est.as_str());
     let ate = eval_json(&["ate", "--gt", gt, "--est", est, "--align", "se3"]);
     assert_near(&ate, "rmse", 0.013473, 5e-7);
     assert_eq!(ate["pairs"], 786);
@@ -71,22 +77,15 @@ fn ate_and_rpe_match_evo_on_fr1_xyz() {
 
 #[test]
 fn kitti_pairs_by_index_like_evo() {
-    let Some(dir) = data(
+    // evo_ape kitti KITTI_00_gt.txt KITTI_00_ORB.txt -a (evo 1.38): RMSE 1.303449715 m
+    let Some((gt, est)) = evo_files(
         "kitti_pairs_by_index_like_evo",
-        "trajectories/evo_test_data",
+        "KITTI_00_gt.txt",
+        "KITTI_00_ORB.txt",
     ) else {
         return;
     };
-    // evo_ape kitti KITTI_00_gt.txt KITTI_00_ORB.txt -a (evo 1.38): RMSE 1.303449715 m
-    let gt = dir.join("KITTI_00_gt.txt");
-    let est = dir.join("KITTI_00_ORB.txt");
-    let ate = eval_json(&[
-        "ate",
-        "--gt",
-        gt.to_str().unwrap(),
-        "--est",
-        est.to_str().unwrap(),
-    ]);
+    let ate = eval_json(&["ate", "--gt", &gt, "--est", &est]);
     assert_near(&ate, "rmse", 1.303449715, 1e-8);
     assert_eq!(ate["pairs"], 4541);
 }

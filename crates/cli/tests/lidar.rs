@@ -243,3 +243,35 @@ fn outputs_and_relations_are_checked_and_the_report_is_always_written() {
     );
     assert!(out.join("trajectory.tum").exists());
 }
+
+/// Arguments whose memory the machine cannot hold are refused before the run, with the
+/// estimate and the limit (issue 25 item 2): 100000 particles in a hall 25 m across each side
+/// need hundreds of gigabytes for their maps (each particle's own copy of the grid tiles one scan
+/// covers).
+#[test]
+fn particles_beyond_the_machines_memory_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("hall.clf");
+    let ranges = vec!["25.0".to_string(); 181];
+    let text: String = (0..30)
+        .map(|k| flaser(&ranges, 0.05 * f64::from(k), 100.0 + 0.1 * f64::from(k)))
+        .collect();
+    std::fs::write(&log, text).unwrap();
+    let out = dir.path().join("out");
+    let run = Command::new(env!("CARGO_BIN_EXE_slamkit"))
+        .arg("lidar")
+        .arg(&log)
+        .args(["--method", "rbpf", "--particles", "100000", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert_eq!(run.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        stderr.contains("100000 particles need at least")
+            && stderr.contains("more than this machine's")
+            && stderr.lines().count() == 1,
+        "{stderr}"
+    );
+    assert!(!out.join("report.json").exists() && !out.join("trajectory.tum").exists());
+}

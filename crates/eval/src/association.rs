@@ -31,6 +31,30 @@ pub enum Pairing {
     Index,
 }
 
+impl Pairing {
+    /// How two trajectory files pair, as evo does: by index when either is KITTI (its
+    /// timestamps are line numbers), otherwise by nearest timestamp within `max_diff_s`.
+    ///
+    /// ```
+    /// use slamkit_eval::Pairing;
+    /// use slamkit_io::TrajectoryFormat;
+    /// let p = Pairing::for_formats(TrajectoryFormat::Tum, TrajectoryFormat::Kitti, 0.01);
+    /// assert_eq!(p, Pairing::Index);
+    /// ```
+    pub fn for_formats(
+        reference: slamkit_io::TrajectoryFormat,
+        estimate: slamkit_io::TrajectoryFormat,
+        max_diff_s: f64,
+    ) -> Self {
+        use slamkit_io::TrajectoryFormat::Kitti;
+        if reference == Kitti || estimate == Kitti {
+            Self::Index
+        } else {
+            Self::NearestTime { max_diff_s }
+        }
+    }
+}
+
 impl Default for Pairing {
     fn default() -> Self {
         Self::NearestTime {

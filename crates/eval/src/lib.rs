@@ -11,11 +11,12 @@
 //! * [`association`] — pairing poses by nearest timestamp exactly as evo 1.38, or by index.
 //! * [`stats`] — [`ErrorStats`]: RMSE, mean, median, std, min, max and count, as evo and numpy
 //!   compute them.
-//! * [`plot`] — top view and error-over-time figures (PNG or SVG).
+//! * [`plot`] — top view and error-over-time figures (PNG or SVG), written atomically.
 //! * [`report_html`] — self-contained HTML report pages, images embedded.
 //!
 //! Poses are `world_from_body` ([`slamkit_core::Pose3`]); errors are in metres and degrees.
-//! Nothing here prints or reads input files; the `slamkit eval` command does ([`plot`] and
+//! Relations and trajectory formats are [`slamkit_io`]'s types, so what it reads is scored as
+//! read. Nothing here prints or reads input files; the `slamkit eval` command does ([`plot`] and
 //! [`report_html`] write the figures and pages they are asked for).
 
 pub mod association;
@@ -116,6 +117,9 @@ pub enum EvalError {
         /// The plot file.
         path: PathBuf,
     },
+    /// A written figure could not be put in place.
+    #[error("{0}")]
+    Io(#[from] std::io::Error),
     /// Drawing or writing a plot failed.
     #[error("plot {path}: {message}")]
     Plot {

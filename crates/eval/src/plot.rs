@@ -11,6 +11,8 @@ use nalgebra::Point3;
 use plotters::coord::types::RangedCoordf64;
 use plotters::coord::Shift;
 use plotters::prelude::*;
+use slamkit_core::Trajectory;
+use slamkit_io::output_folder::write_via_temp;
 use std::ops::Range;
 use std::path::Path;
 use std::sync::OnceLock;
@@ -46,7 +48,49 @@ const SIZE: (u32, u32) = (1400, 620);
 /// [`EvalError::UnsupportedPlotFormat`] for another extension, [`EvalError::Plot`] when drawing
 /// or writing fails.
 pub fn plot_errors(path: &Path, view: &TopView, series: &ErrorSeries) -> Result<(), EvalError> {
-    plot_with(path, view, series, font_available())
+    // Drawn into a temporary file, then renamed: a reader never sees half a figure.
+    write_via_temp(path, |tmp| plot_with(tmp, view, series, font_available())).map_err(
+        |e| match e {
+            EvalError::Plot { message, .. } => EvalError::Plot {
+                path: path.to_path_buf(),
+                message,
+            },
+            EvalError::UnsupportedPlotFormat { .. } => EvalError::UnsupportedPlotFormat {
+                path: path.to_path_buf(),
+            },
+            other => other,
+        },
+    )
+}
+
+/// Writes a position-error figure (error label `position error [m]`): the reference and the
+/// estimate seen from above beside `errors` over `timestamps`.
+///
+/// # Errors
+/// As [`plot_errors`].
+pub fn plot_position_errors(
+    path: &Path,
+    title: &str,
+    view: &TopView,
+    timestamps: &[f64],
+    errors: &[f64],
+) -> Result<(), EvalError> {
+    let series = ErrorSeries {
+        title,
+        label: "position error [m]",
+        timestamps,
+        errors,
+    };
+    plot_errors(path, view, &series)
+}
+
+/// The positions of a trajectory's poses, in order: what a [`TopView`] draws.
+pub fn positions(trajectory: &Trajectory) -> Vec<Point3<f64>> {
+    trajectory
+        .poses
+        .iter()
+        .map(|p| Point3::from(p.pose.translation.vector))
+        .collect()
 }
 
 fn plot_with(
@@ -291,6 +335,29 @@ mod tests {
             let len = std::fs::metadata(&path).unwrap().len();
             assert!(len > 1000, "{name}: {len} bytes");
         }
+    }
+
+    #[test]
+    fn position_errors_are_drawn_from_trajectories_atomically() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut t = Trajectory::new();
+        for i in 0..30 {
+            let p = slamkit_core::Pose3::translation(i as f64 * 0.1, 1.0, 2.0);
+            t.push(i as f64, p);
+        }
+        let points = positions(&t);
+        assert_eq!(points.len(), 30);
+        assert_eq!(points[3], Point3::new(0.30000000000000004, 1.0, 2.0));
+        let view = TopView {
+            reference: &points,
+            estimate: &points,
+        };
+        let times: Vec<f64> = (0..30).map(f64::from).collect();
+        let path = dir.path().join("errors.png");
+        plot_position_errors(&path, "test", &view, &times, &[0.0; 30]).unwrap();
+        let names: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+        assert_eq!(names.len(), 1, "no temporary file is left");
+        assert!(std::fs::metadata(&path).unwrap().len() > 1000);
     }
 
     #[test]

@@ -20,16 +20,9 @@ use slamkit_core::{Pose3, Trajectory};
 /// \[s\]. Relation stamps equal scan stamps (to 6 decimals) in the benchmark logs.
 pub const RELATION_STAMP_TOLERANCE_S: f64 = 1e-3;
 
-/// One ground-truth relative motion.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct GroundTruthRelation {
-    /// Time of the first pose \[s\].
-    pub t1: f64,
-    /// Time of the second pose \[s\].
-    pub t2: f64,
-    /// Motion from the first pose to the second, in the first pose's frame.
-    pub t1_from_t2: Pose3,
-}
+/// One ground-truth relative motion: the type [`slamkit_io::relations::read_relations`] reads, so
+/// a `.relations` file is scored as read.
+pub use slamkit_io::relations::Relation as GroundTruthRelation;
 
 /// Result of the relations metric; the field names are the `--json` keys of
 /// `slamkit eval relations` (DESIGN.md), plus the squared means and `missing`.
@@ -51,6 +44,29 @@ pub struct RelationsStats {
     pub count: usize,
     /// Relations skipped because an end had no estimated pose within the tolerance.
     pub missing: usize,
+}
+
+/// The metric as `slamkit eval relations` prints it: counts, then translation and rotation
+/// error (mean ± std, and mean squared), one line each.
+impl std::fmt::Display for RelationsStats {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let s = self;
+        writeln!(
+            f,
+            "relations metric: {} relations scored, {} without estimated poses",
+            s.count, s.missing
+        )?;
+        writeln!(
+            f,
+            "  translation  {:>10.7} ± {:.7} m    (mean squared {:.7} m²)",
+            s.trans_mean, s.trans_std, s.trans_sq_mean
+        )?;
+        writeln!(
+            f,
+            "  rotation     {:>10.7} ± {:.7} deg  (mean squared {:.7} deg²)",
+            s.rot_mean_deg, s.rot_std_deg, s.rot_sq_mean_deg2
+        )
+    }
 }
 
 /// Scores `estimate` on `relations`.
@@ -138,6 +154,27 @@ impl<'a> StampIndex<'a> {
 mod tests {
     use super::*;
     use nalgebra::{Translation3, UnitQuaternion, Vector3};
+
+    #[test]
+    fn prints_counts_then_translation_and_rotation() {
+        let stats = RelationsStats {
+            trans_mean: 0.5,
+            trans_std: 0.25,
+            rot_mean_deg: 1.0,
+            rot_std_deg: 0.5,
+            trans_sq_mean: 0.3125,
+            rot_sq_mean_deg2: 1.25,
+            count: 4,
+            missing: 1,
+        };
+        let text = stats.to_string();
+        assert_eq!(
+            text,
+            "relations metric: 4 relations scored, 1 without estimated poses\n  translation   \
+             0.5000000 ± 0.2500000 m    (mean squared 0.3125000 m²)\n  rotation      \
+             1.0000000 ± 0.5000000 deg  (mean squared 1.2500000 deg²)\n"
+        );
+    }
 
     fn planar(x: f64, y: f64, yaw: f64) -> Pose3 {
         Pose3::from_parts(

@@ -26,6 +26,24 @@ pub struct ErrorStats {
     pub pairs: usize,
 }
 
+/// The statistics as a table, one line each, in metres:
+/// `  rmse      0.013473 m` and so on (`slamkit eval ate` prints it).
+impl std::fmt::Display for ErrorStats {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        for (name, value) in [
+            ("rmse", self.rmse),
+            ("mean", self.mean),
+            ("median", self.median),
+            ("std", self.std),
+            ("min", self.min),
+            ("max", self.max),
+        ] {
+            writeln!(f, "  {name:<7}{value:>12.6} m")?;
+        }
+        Ok(())
+    }
+}
+
 impl ErrorStats {
     /// Summarises `errors`.
     ///
@@ -77,6 +95,18 @@ pub fn mean_std(values: &[f64]) -> Option<(f64, f64)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn prints_one_line_a_statistic() {
+        let stats = ErrorStats::from_errors(&[1.0, 2.0, 3.0]).unwrap();
+        let text = stats.to_string();
+        assert_eq!(text.lines().count(), 6);
+        assert!(
+            text.starts_with("  rmse       2.160247 m\n  mean       2.000000 m\n"),
+            "{text}"
+        );
+        assert!(text.ends_with("  max        3.000000 m\n"), "{text}");
+    }
 
     #[test]
     fn known_values() {

@@ -37,6 +37,7 @@ use crate::error::read_text;
 use crate::IoError;
 use nalgebra::Vector2;
 use slamkit_core::observation::{FlowSample, ImuSample, RangePair};
+use slamkit_core::Observation;
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -60,6 +61,65 @@ pub fn read_imu(path: &Path) -> Result<Vec<ImuSample>, IoError> {
 /// Reads `flow.csv`.
 pub fn read_flow(path: &Path) -> Result<Vec<FlowSample>, IoError> {
     parse_flow(&read_text(path)?, &path.display().to_string())
+}
+
+/// A drone's CSV files read as observations (not yet in time order with the scans), and how
+/// many readings each file gave.
+#[derive(Debug, Clone, Default)]
+pub struct DroneReadings {
+    /// Range pairs, then attitude samples, then flow samples.
+    pub observations: Vec<Observation>,
+    /// Readings per file.
+    pub counts: ReadingCounts,
+}
+
+/// Readings per file of a [`DroneReadings`].
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+pub struct ReadingCounts {
+    /// Lines of `ranges.csv`.
+    pub ranges: usize,
+    /// Lines of `imu.csv` (0 without one).
+    pub imu: usize,
+    /// Lines of `flow.csv` (0 without one).
+    pub flow: usize,
+}
+
+/// Reads `ranges.csv` and, when given, `imu.csv` and `flow.csv` as observations.
+///
+/// ```
+/// let dir = tempfile::tempdir().unwrap();
+/// let ranges = dir.path().join("ranges.csv");
+/// std::fs::write(&ranges, "timestamp,up_m,down_m\n0.1,1.5,0.8\n").unwrap();
+/// let read = slamkit_io::drone_csv::read_observations(&ranges, None, None).unwrap();
+/// assert_eq!((read.counts.ranges, read.counts.imu), (1, 0));
+/// ```
+pub fn read_observations(
+    ranges: &Path,
+    imu: Option<&Path>,
+    flow: Option<&Path>,
+) -> Result<DroneReadings, IoError> {
+    let mut observations: Vec<Observation> = read_ranges(ranges)?
+        .into_iter()
+        .map(Observation::Range)
+        .collect();
+    let mut counts = ReadingCounts {
+        ranges: observations.len(),
+        ..ReadingCounts::default()
+    };
+    if let Some(path) = imu {
+        let samples = read_imu(path)?;
+        counts.imu = samples.len();
+        observations.extend(samples.into_iter().map(Observation::Imu));
+    }
+    if let Some(path) = flow {
+        let samples = read_flow(path)?;
+        counts.flow = samples.len();
+        observations.extend(samples.into_iter().map(Observation::Flow));
+    }
+    Ok(DroneReadings {
+        observations,
+        counts,
+    })
 }
 
 /// Parses the text of a `ranges.csv`; `file` names it in errors.

@@ -25,6 +25,8 @@
 //! * [`relations`]: ground-truth relations of the 2D SLAM benchmark (`*.relations`,
 //!   Kümmerle et al. 2009).
 //! * [`ply`]: point clouds as PLY for any viewer.
+//! * [`output_folder`]: a run's outputs written atomically (temporary file or staging folder,
+//!   then rename), an earlier run's files not mixed with the new ones.
 //! * [`error`]: [`IoError`], every variant naming the file, and the line or frame.
 
 pub mod bag;
@@ -42,6 +44,7 @@ pub mod kitti_writer;
 pub mod layout;
 pub mod mrpt_text;
 mod odometry_bracket;
+pub mod output_folder;
 pub mod ply;
 pub mod redwood;
 pub mod relations;

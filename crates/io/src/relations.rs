@@ -35,6 +35,24 @@ pub fn read_relations(path: &Path) -> Result<Vec<Relation>, IoError> {
     parse_relations_named(&read_text(path)?, &path.display().to_string())
 }
 
+/// The benchmark's relations file beside a log, when it exists: `<stem>.relations` in the log's
+/// folder, the stem being the name up to its first dot (`intel.fromrosbag.clf.gz` →
+/// `intel.relations`).
+///
+/// ```
+/// let dir = tempfile::tempdir().unwrap();
+/// let log = dir.path().join("intel.fromrosbag.clf.gz");
+/// assert_eq!(slamkit_io::relations::beside_log(&log), None);
+/// std::fs::write(dir.path().join("intel.relations"), "").unwrap();
+/// assert_eq!(slamkit_io::relations::beside_log(&log), Some(dir.path().join("intel.relations")));
+/// ```
+pub fn beside_log(log: &Path) -> Option<std::path::PathBuf> {
+    let name = log.file_name()?.to_str()?;
+    let stem = name.split('.').next()?;
+    let candidate = log.with_file_name(format!("{stem}.relations"));
+    candidate.exists().then_some(candidate)
+}
+
 fn parse_relations_named(text: &str, file: &str) -> Result<Vec<Relation>, IoError> {
     let mut relations = Vec::new();
     for (i, line) in text.lines().enumerate() {

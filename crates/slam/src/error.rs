@@ -47,6 +47,9 @@ pub enum SlamError {
     /// A simulated run cannot be scored (no scan, no ground truth).
     #[error("scoring: {0}")]
     Scoring(String),
+    /// No scan of a log can be matched (a dead sensor): the run would give nothing.
+    #[error("no usable scan: {0}")]
+    NoUsableScan(String),
     /// A worker thread could not start, or died.
     #[error("thread: {0}")]
     Thread(String),

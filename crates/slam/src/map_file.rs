@@ -18,9 +18,11 @@
 //! truncated or bit-flipped file gives one clear error and never a panic. Writes go to a
 //! temporary file beside the target that is renamed over it once complete and synced: a crash
 //! leaves the old map or the new one, never half of one.
+//! [`info`] describes a file (`slamkit map info`).
 
 pub mod codec;
 pub mod export;
+pub mod info;
 
 use flate2::read::DeflateDecoder;
 use flate2::write::DeflateEncoder;
@@ -333,35 +335,9 @@ pub fn peek_version(bytes: &[u8]) -> Option<(u16, u16)> {
     ))
 }
 
-/// Writes `bytes` to `path` through a temporary file in the same folder and a rename, so
-/// readers see the old file or the whole new one.
-pub fn write_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => std::path::PathBuf::from("."),
-    };
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "map".into());
-    let tmp = dir.join(format!(".{name}.tmp-{}", std::process::id()));
-    let result = (|| {
-        let mut file = std::fs::File::create(&tmp)?;
-        file.write_all(bytes)?;
-        file.sync_all()?;
-        std::fs::rename(&tmp, path)?;
-        // The rename is durable once the folder is synced; not every platform allows opening
-        // a folder, and the data is already safe, so a failure here is not an error.
-        if let Ok(d) = std::fs::File::open(&dir) {
-            let _ = d.sync_all();
-        }
-        Ok(())
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
-}
+/// Writes `bytes` to `path` through a temporary file in the same folder and a rename (the one
+/// helper every output of slamkit goes through).
+pub use slamkit_io::output_folder::write_atomically;
 
 #[cfg(test)]
 mod tests;

@@ -58,16 +58,7 @@ fn run(config: &LidarSlamConfig, scans: &[LaserScan]) -> LidarSlam {
 fn relations(test: &str, end: f64) -> Option<Vec<GroundTruthRelation>> {
     let dir = slamkit_testdata::data(test, "lidar2d/intel")?;
     let all = slamkit_io::relations::read_relations(&dir.join("intel.relations")).unwrap();
-    Some(
-        all.into_iter()
-            .filter(|r| r.t1.max(r.t2) < end)
-            .map(|r| GroundTruthRelation {
-                t1: r.t1,
-                t2: r.t2,
-                t1_from_t2: r.t1_from_t2,
-            })
-            .collect(),
-    )
+    Some(all.into_iter().filter(|r| r.t1.max(r.t2) < end).collect())
 }
 
 fn relations_error(relations: &[GroundTruthRelation], trajectory: &Trajectory) -> f64 {

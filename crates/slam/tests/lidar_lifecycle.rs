@@ -22,15 +22,8 @@ fn log(test: &str, name: &str, file: &str) -> Option<Log> {
     let scans = slamkit_io::carmen::read_carmen(&dir.join(file))
         .unwrap()
         .scans;
-    let relations = slamkit_io::relations::read_relations(&dir.join(format!("{name}.relations")))
-        .unwrap()
-        .into_iter()
-        .map(|r| GroundTruthRelation {
-            t1: r.t1,
-            t2: r.t2,
-            t1_from_t2: r.t1_from_t2,
-        })
-        .collect();
+    let relations =
+        slamkit_io::relations::read_relations(&dir.join(format!("{name}.relations"))).unwrap();
     Some(Log { scans, relations })
 }
 

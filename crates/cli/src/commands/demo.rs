@@ -18,49 +18,29 @@
 //! `metrics.layer_localisation`) and `report.html` (all of it on one page, images embedded).
 
 use crate::commands::drone_files::{write_grids, write_ply, LayerFile};
-use crate::output::{peak_rss_bytes, prepare_out_dir, progress_bar, timings_json, write_report};
+use crate::output::{finish, peak_rss_bytes, progress_bar, timings_json, write_grid};
 use anyhow::Context;
 use nalgebra::Point3;
 use serde_json::json;
-use slamkit_core::Trajectory;
-use slamkit_eval::plot::{plot_errors, ErrorSeries, TopView};
+use slamkit_eval::plot::{plot_position_errors, positions, TopView};
 use slamkit_eval::report_html::{Figure, HtmlReport};
+use slamkit_io::output_folder::OutputFolder;
 use slamkit_io::write_tum;
-use slamkit_map::{save_map_yaml, save_png, OccupancyGridConfig};
-use slamkit_sim::{SimConfig, Simulation, World as SimWorld};
+use slamkit_map::OccupancyGridConfig;
+use slamkit_sim::{SimConfig, Simulation, World};
 use slamkit_slam::drone::kidnapped;
 use slamkit_slam::drone::simulated::{flight_config, SimulatedFlight};
 use slamkit_slam::visual::simulated::run_simulated_rgbd;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// Built-in worlds.
-#[derive(Debug, Clone, Copy, clap::ValueEnum)]
-pub enum World {
-    /// 5 × 5 m, 1 m high, boxes and cylinders.
-    Small,
-    /// 10 × 10 m, 2.4 m high, more obstacles and a ramp.
-    Large,
-    /// 12.9 × 7.7 m, 2.5 m high, furnished.
-    Office,
-}
-
-impl World {
-    fn name(self) -> &'static str {
-        match self {
-            World::Small => "small",
-            World::Large => "large",
-            World::Office => "office",
-        }
-    }
-}
-
 /// Arguments of `slamkit demo`.
 #[derive(Debug, clap::Args)]
 pub struct DemoArgs {
-    /// Built-in world.
-    #[arg(long, value_enum, default_value = "small")]
-    pub world: World,
+    /// Built-in world: `small` (5 × 5 m, 1 m high, boxes and cylinders), `large` (10 × 10 m,
+    /// 2.4 m high, more obstacles and a ramp) or `office` (12.9 × 7.7 m, 2.5 m high, furnished).
+    #[arg(long, default_value = "small", value_parser = ["small", "large", "office"])]
+    pub world: String,
     /// Seed of the simulation.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -69,20 +49,29 @@ pub struct DemoArgs {
     pub out: PathBuf,
 }
 
+/// The files and folders a demo run writes in `--out`.
+#[rustfmt::skip]
+const OUTPUTS: &[&str] = &[
+    "trajectory.tum", "groundtruth.tum", "trajectory_pf.tum", "trajectory_vo.tum", "cloud.ply",
+    "map.pgm", "map.yaml", "map.png", "maps", "map_pf.pgm", "map_pf.yaml", "map_pf.png",
+    "errors_icp.png", "errors_pf.png", "errors_vo.png", "rgbd", "report.json", "report.html",
+];
+
 /// A method's line in the table and the page: name, mean and max error \[m\], error plot.
 type MethodLine = (&'static str, f64, f64, PathBuf);
 
 /// Runs `slamkit demo`.
 pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     let started = Instant::now();
-    let out = prepare_out_dir(&args.out)?;
-    let world = SimWorld::builtin(args.world.name())?;
+    let folder = OutputFolder::create(&args.out, OUTPUTS)?;
+    let out = folder.path().to_path_buf();
+    let world = World::builtin(&args.world)?;
     let sim = Simulation::new(world, SimConfig::default(), args.seed)
         .context("setting up the simulation")?;
     println!(
         "simulating a {:.0} s flight through the `{}` world (seed {})",
         sim.duration_s(),
-        args.world.name(),
+        args.world,
         args.seed
     );
     let run = sim.lidar_run();
@@ -121,22 +110,19 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     write_ply(&out.join("cloud.ply"), &cloud)?;
     write_tum(&out.join("trajectory_pf.tum"), &pf.estimate)?;
     if let Some(grid) = pf_filter.map() {
-        save_map_yaml(grid, &out.join("map_pf.yaml"))?;
-        save_png(grid, &out.join("map_pf.png"))?;
+        write_grid(grid, &out.join("map_pf"))?;
     }
     let mut methods: Vec<MethodLine> = Vec::new();
     for m in [icp, pf] {
         let png = out.join(format!("errors_{}.png", m.key));
-        let points = |t: &Trajectory| -> Vec<Point3<f64>> {
-            t.poses
-                .iter()
-                .map(|p| Point3::from(p.pose.translation.vector))
-                .collect()
-        };
         let timestamps: Vec<f64> = m.estimate.poses.iter().map(|p| p.timestamp).collect();
-        let (truth, estimate) = (points(&run.ground_truth), points(&m.estimate));
+        let (reference, estimate) = (positions(&run.ground_truth), positions(&m.estimate));
+        let view = TopView {
+            reference: &reference,
+            estimate: &estimate,
+        };
         let title = format!("{}: position error", m.title);
-        plot(&png, &title, (&truth, &estimate), &timestamps, &m.errors_m)?;
+        plot_position_errors(&png, &title, &view, &timestamps, &m.errors_m)?;
         methods.push((m.title, m.mean_m(), m.max_m(), png));
     }
 
@@ -146,18 +132,18 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     write_tum(&out.join("trajectory_vo.tum"), &vo.trajectory)?;
     let vo_plot = out.join("errors_vo.png");
     let a = &vo.ate;
-    let positions = (
-        &a.reference_positions[..],
-        &a.aligned_estimate_positions[..],
-    );
+    let view = TopView {
+        reference: &a.reference_positions,
+        estimate: &a.aligned_estimate_positions,
+    };
     let title = "RGB-D visual odometry: position error (SE(3)-aligned)";
-    plot(&vo_plot, title, positions, &a.timestamps, &a.errors_m)?;
+    plot_position_errors(&vo_plot, title, &view, &a.timestamps, &a.errors_m)?;
     methods.push(("RGB-D visual odometry", a.stats.mean, a.stats.max, vo_plot));
 
     let stats = session.stats();
     let counts = session.frame_counts();
     let report = json!({
-        "input": { "world": args.world.name(), "seed": args.seed, "duration_s": sim.duration_s() },
+        "input": { "world": args.world, "seed": args.seed, "duration_s": sim.duration_s() },
         "config": { "sim": sim.config, "icp": config.layers, "pf": config.particle_filter },
         "frames": {
             "read": run.scans.len(),
@@ -201,7 +187,6 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
             "timings_ms": timings_json(&vo.timings),
         },
     });
-    write_report(&out, &report)?;
     let layer_choice = kidnapped::summary(layer_loc.as_ref());
     let path_length_m = run.ground_truth.path_length_m();
     let intro = format!(
@@ -211,7 +196,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         args.seed
     );
     let page = Page {
-        title: format!("slamkit demo: {} world", args.world.name()),
+        title: format!("slamkit demo: {} world", args.world),
         intro,
         methods: &methods,
         layer_choice: &layer_choice,
@@ -219,6 +204,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         layers: &layer_files,
     };
     write_html(&out.join("report.html"), &page)?;
+    finish(folder, &report)?;
     println!(
         "method                 mean error  max error   (path {path_length_m:.1} m, {} layers)",
         layer_files.len()
@@ -228,29 +214,8 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     }
     println!("RGB-D VO ATE RMSE {:.3} m (SE(3)-aligned)", a.stats.rmse);
     println!("{layer_choice}");
-    println!("outputs in {}", out.display());
+    println!("outputs in {}", args.out.display());
     Ok(())
-}
-
-/// Writes a top view of `reference` and `estimate` positions beside the error over time.
-fn plot(
-    path: &Path,
-    title: &str,
-    (reference, estimate): (&[Point3<f64>], &[Point3<f64>]),
-    timestamps: &[f64],
-    errors: &[f64],
-) -> anyhow::Result<()> {
-    let view = TopView {
-        reference,
-        estimate,
-    };
-    let series = ErrorSeries {
-        title,
-        label: "position error [m]",
-        timestamps,
-        errors,
-    };
-    Ok(plot_errors(path, &view, &series)?)
 }
 
 /// What `report.html` shows.

@@ -1,11 +1,10 @@
 //! The files both `slamkit demo` and `slamkit lidar --ranges` write from a [`DroneSlam`]
 //! session, and its run over a flight with a progress bar.
 
-use crate::output::progress_bar;
+use crate::output::{progress_bar, write_grid};
 use anyhow::Context;
 use nalgebra::Point3;
 use slamkit_core::Observation;
-use slamkit_map::{save_map_yaml, save_png};
 use slamkit_slam::drone::grids::LayerGrids;
 use slamkit_slam::DroneSlam;
 use std::path::{Path, PathBuf};
@@ -40,16 +39,14 @@ pub struct LayerFile {
 
 /// Writes the grid of every scan (`map.*`) and one per height layer (`maps/layer_NNN.*`).
 pub fn write_grids(out: &Path, grids: &LayerGrids) -> anyhow::Result<Vec<LayerFile>> {
-    save_map_yaml(&grids.all, &out.join("map.yaml"))?;
-    save_png(&grids.all, &out.join("map.png"))?;
+    write_grid(&grids.all, &out.join("map"))?;
     let dir = out.join("maps");
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
     let mut files = Vec::new();
     for (layer, l) in &grids.layers {
         let stem = dir.join(format!("layer_{layer:03}"));
-        save_map_yaml(&l.grid, &stem.with_extension("yaml"))?;
+        write_grid(&l.grid, &stem)?;
         let png = stem.with_extension("png");
-        save_png(&l.grid, &png)?;
         files.push(LayerFile {
             layer: *layer,
             z_range_m: l.z_range_m,

@@ -11,7 +11,7 @@ use slamkit_core::Trajectory;
 use slamkit_eval::plot::{plot_errors, ErrorSeries, TopView};
 use slamkit_eval::{
     ate, relations_error, rpe, Alignment, AteResult, DeltaUnit, ErrorStats, GroundTruthRelation,
-    Pairing, RelationsStats, RpeConfig, DEFAULT_MAX_DIFF_S,
+    Pairing, RpeConfig, DEFAULT_MAX_DIFF_S,
 };
 use slamkit_io::{read_trajectory, TrajectoryFormat};
 use std::path::{Path, PathBuf};
@@ -206,23 +206,15 @@ fn run_relations(args: &RelationsArgs) -> anyhow::Result<()> {
     if args.json {
         println!("{}", serde_json::to_string(&stats)?);
     } else {
-        print_relations(&stats);
+        print!("{stats}");
     }
     Ok(())
 }
 
-/// Reads a `.relations` file into the metric's ground-truth type.
+/// Reads a `.relations` file.
 pub fn load_relations(path: &Path) -> anyhow::Result<Vec<GroundTruthRelation>> {
     // The reader's error names the file; the context says only what was being read.
-    Ok(slamkit_io::relations::read_relations(path)
-        .context("reading relations")?
-        .into_iter()
-        .map(|r| GroundTruthRelation {
-            t1: r.t1,
-            t2: r.t2,
-            t1_from_t2: r.t1_from_t2,
-        })
-        .collect())
+    slamkit_io::relations::read_relations(path).context("reading relations")
 }
 
 fn read(path: &Path) -> anyhow::Result<(Trajectory, TrajectoryFormat)> {
@@ -254,46 +246,18 @@ fn load_pair(
     let (gt, gt_format) = read(&args.gt)?;
     stage.set_message(format!("reading {}", args.est.display()));
     let (est, est_format) = read(&args.est)?;
-    let pairing = if gt_format == TrajectoryFormat::Kitti || est_format == TrajectoryFormat::Kitti {
-        Pairing::Index
-    } else {
-        Pairing::NearestTime {
-            max_diff_s: args.max_diff,
-        }
-    };
-    Ok((gt, est, pairing))
+    Ok((
+        gt,
+        est,
+        Pairing::for_formats(gt_format, est_format, args.max_diff),
+    ))
 }
 
 fn print_stats(title: &str, stats: &ErrorStats, json: bool) -> anyhow::Result<()> {
     if json {
         println!("{}", serde_json::to_string(stats)?);
-        return Ok(());
-    }
-    println!("{title}, {} pairs", stats.pairs);
-    for (name, value) in [
-        ("rmse", stats.rmse),
-        ("mean", stats.mean),
-        ("median", stats.median),
-        ("std", stats.std),
-        ("min", stats.min),
-        ("max", stats.max),
-    ] {
-        println!("  {name:<7}{value:>12.6} m");
+    } else {
+        print!("{title}, {} pairs\n{stats}", stats.pairs);
     }
     Ok(())
-}
-
-fn print_relations(s: &RelationsStats) {
-    println!(
-        "relations metric: {} relations scored, {} without estimated poses",
-        s.count, s.missing
-    );
-    println!(
-        "  translation  {:>10.7} ± {:.7} m    (mean squared {:.7} m²)",
-        s.trans_mean, s.trans_std, s.trans_sq_mean
-    );
-    println!(
-        "  rotation     {:>10.7} ± {:.7} deg  (mean squared {:.7} deg²)",
-        s.rot_mean_deg, s.rot_std_deg, s.rot_sq_mean_deg2
-    );
 }

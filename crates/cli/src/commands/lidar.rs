@@ -7,8 +7,8 @@ use crate::commands::bag::TopicArgs;
 use crate::commands::eval::load_relations;
 use crate::commands::{bag, lidar_drone, lidar_mcl};
 use crate::output::{
-    error_chain, peak_rss_bytes, prepare_out_dir, progress_bar, timings_json, write_report,
-    Unsuccessful,
+    ensure_fits_memory, error_chain, finish, peak_rss_bytes, progress_bar, timings_json,
+    write_grid, Unsuccessful,
 };
 use crate::settings::{settings, with_file};
 use anyhow::Context;
@@ -17,13 +17,20 @@ use serde::Serialize;
 use serde_json::json;
 use slamkit_core::{Pose2, Trajectory};
 use slamkit_io::carmen::CarmenLog;
-use slamkit_lidar::icp_slam::IcpSlamConfig;
-use slamkit_map::{save_map_yaml, save_png};
+use slamkit_io::output_folder::OutputFolder;
+use slamkit_slam::lidar::preflight::{ensure_usable, particle_maps_min_bytes};
 use slamkit_slam::lidar::LidarMap;
 use slamkit_slam::{LidarMethod, LidarSlam, LidarSlamConfig};
-use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+
+/// The files and folders `slamkit lidar` writes in `--out` (by any method).
+#[rustfmt::skip]
+pub(crate) const OUTPUTS: &[&str] = &[
+    "trajectory.tum", "trajectory_map.tum", "trajectory_pf.tum", "map.pgm", "map.yaml",
+    "map.png", "map.skmap", "map_pf.pgm", "map_pf.yaml", "map_pf.png", "maps", "cloud.ply",
+    "report.json",
+];
 
 /// SLAM methods.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -103,9 +110,15 @@ pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
     }
     let started = Instant::now();
     let config = session_config(args)?;
-    let out = prepare_out_dir(&args.out)?;
+    let folder = OutputFolder::create(&args.out, OUTPUTS)?;
+    let out = folder.path();
     let log = read_log(args)?;
-    ensure_usable(args, &log, &config.icp)?;
+    ensure_usable(&log.scans, &config.icp).context(args.log.display().to_string())?;
+    let new_map = args.localize.is_none() && args.continue_map.is_none();
+    let particle_maps_min_bytes = (new_map && config.method == LidarMethod::Rbpf)
+        .then(|| particle_maps_min_bytes(&config.rbpf, &log.scans))
+        .flatten();
+    ensure_fits_memory(particle_maps_min_bytes, config.rbpf.particles)?;
     let load = |path: &Path| -> anyhow::Result<LidarMap> {
         let started = Instant::now();
         let (map, _) = LidarMap::load(path)?;
@@ -146,8 +159,7 @@ pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
         slamkit_io::trajectory_file::write_tum(&path, &session.map().trajectory())?;
     }
     let grid = session.output_grid(&log.scans)?;
-    save_map_yaml(&grid, &out.join("map.yaml"))?;
-    save_png(&grid, &out.join("map.png"))?;
+    write_grid(&grid, &out.join("map"))?;
     let map_file = session.map_file()?;
     for path in std::iter::once(out.join("map.skmap")).chain(args.save_map.clone()) {
         map_file
@@ -171,17 +183,18 @@ pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
             "failed": counts.failed,
             "unreadable_lines": log.skipped.len(),
         },
-        "scans": scan_counts(&log, &session),
+        "scans": session.scan_counts(&log),
         "session": session.stats(),
         "stats": session.method_stats(),
         "wall_seconds": started.elapsed().as_secs_f64(),
         "session_seconds": session_seconds,
         "timings_ms": timings_json(&session.timings()),
         "peak_rss_bytes": peak_rss_bytes(),
+        "particle_maps_min_bytes": particle_maps_min_bytes,
         "metrics": relations_metrics(args, &trajectory)?,
     });
-    write_report(&out, &report)?;
-    print_summary(&out, &report);
+    finish(folder, &report)?;
+    print_summary(&args.out, &report);
     let jumps = session.stats().odometry_rejected;
     if jumps > 0 {
         eprintln!(
@@ -194,30 +207,6 @@ pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
     } else if args.localize.is_some() || args.continue_map.is_some() {
         return Err(Unsuccessful("the robot was never found in the map".into()).into());
     }
-    Ok(())
-}
-
-/// Refuses a log none of whose scans has enough beams in range to be matched (every range
-/// negative, a dead sensor), before a run that would write identity poses and score them.
-pub(crate) fn ensure_usable(
-    args: &LidarArgs,
-    log: &CarmenLog,
-    config: &IcpSlamConfig,
-) -> anyhow::Result<()> {
-    let usable = log
-        .scans
-        .iter()
-        .any(|scan| config.scan_points(scan).len() >= config.min_scan_points);
-    anyhow::ensure!(
-        usable,
-        "no usable scan in {}: none of its {} scans has {} beams within {} to {} m \
-         (icp.min_scan_points, icp.min_range_m, icp.max_range_m)",
-        args.log.display(),
-        log.scans.len(),
-        config.min_scan_points,
-        config.min_range_m,
-        config.max_range_m,
-    );
     Ok(())
 }
 
@@ -276,28 +265,6 @@ pub(crate) fn read_log(args: &LidarArgs) -> anyhow::Result<CarmenLog> {
     Ok(log)
 }
 
-/// Scans read and processed, and the broken ones skipped: scans the mapper could not use, by
-/// reason, and log lines the reader could not parse (truncated, NaN, garbage), by reason.
-fn scan_counts(log: &CarmenLog, session: &LidarSlam) -> serde_json::Value {
-    let mut unreadable: BTreeMap<&str, usize> = BTreeMap::new();
-    for line in &log.skipped {
-        *unreadable.entry(line.reason.key()).or_default() += 1;
-    }
-    let broken = &session.method_stats()["skipped_broken"];
-    let total: u64 = broken.as_object().map_or(0, |reasons| {
-        reasons.values().filter_map(|v| v.as_u64()).sum()
-    });
-    json!({
-        "read": log.scans.len(),
-        "processed": session.frame_counts().processed,
-        "skipped_broken": total,
-        "skipped_broken_reasons": broken,
-        "unreadable_lines": log.skipped.len(),
-        "unreadable_line_reasons": unreadable,
-        "time_order": log.time_order,
-    })
-}
-
 /// A method's settings: its defaults, the profile's `[section]`, the `--config` file.
 pub(crate) fn load_config<C: Serialize + DeserializeOwned + Default>(
     args: &LidarArgs,
@@ -311,26 +278,14 @@ pub(crate) fn load_config<C: Serialize + DeserializeOwned + Default>(
     )
 }
 
-/// The explicit `--relations`, else `<stem>.relations` beside the log (`intel.fromrosbag.clf.gz`
-/// → `intel.relations`), when it exists.
-fn relations_path(args: &LidarArgs) -> Option<PathBuf> {
-    if let Some(path) = &args.relations {
-        return Some(path.clone());
-    }
-    let name = args.log.file_name()?.to_str()?;
-    let stem = name.split('.').next()?;
-    let candidate = args.log.with_file_name(format!("{stem}.relations"));
-    candidate.exists().then_some(candidate)
-}
-
-/// The relations metric of `trajectory` (JSON), or null when no relations file is known.
 /// The relations metric of `trajectory` for report.json; when scoring fails, the error in
-/// `error` ([`write_report`] writes the report, then fails with it).
+/// `error` ([`finish`] writes the report, then fails with it).
 pub(crate) fn relations_metrics(
     args: &LidarArgs,
     trajectory: &Trajectory,
 ) -> anyhow::Result<serde_json::Value> {
-    let Some(path) = relations_path(args) else {
+    let path = args.relations.clone();
+    let Some(path) = path.or_else(|| slamkit_io::relations::beside_log(&args.log)) else {
         return Ok(json!(null));
     };
     let scored = load_relations(&path).and_then(|relations| {

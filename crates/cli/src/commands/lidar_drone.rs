@@ -11,18 +11,22 @@
 
 use crate::commands::drone_files::{run_session, write_grids, write_ply};
 use crate::commands::lidar::{
-    load_config, print_summary, read_log, relations_metrics, LidarArgs, Method,
+    load_config, print_summary, read_log, relations_metrics, LidarArgs, Method, OUTPUTS,
 };
-use crate::output::{peak_rss_bytes, prepare_out_dir, timings_json, write_report, Unsuccessful};
+use crate::output::{
+    ensure_fits_memory, finish, peak_rss_bytes, timings_json, write_grid, Unsuccessful,
+};
 use serde_json::json;
 use slamkit_core::observation::time_ordered;
 use slamkit_core::Observation;
-use slamkit_io::drone_csv::{read_flow, read_imu, read_ranges};
+use slamkit_io::drone_csv::read_observations;
+use slamkit_io::output_folder::OutputFolder;
 use slamkit_io::write_tum;
 use slamkit_lidar::rbpf::RbpfConfig;
-use slamkit_map::{save_map_yaml, save_png, OccupancyGridConfig};
-use slamkit_slam::drone::map::DroneMap;
+use slamkit_map::OccupancyGridConfig;
 use slamkit_slam::drone::particle_filter::drone_pf_config;
+use slamkit_slam::lidar::preflight::particle_maps_min_bytes;
+use slamkit_slam::drone::map::DroneMap;
 use slamkit_slam::{DroneSlam, DroneSlamConfig, Session};
 use std::path::Path;
 use std::time::Instant;
@@ -37,33 +41,18 @@ pub fn run(args: &LidarArgs, ranges: &Path) -> anyhow::Result<()> {
             ..drone_pf_config(args.seed.unwrap_or(RbpfConfig::default().seed))
         });
     }
-    let out = prepare_out_dir(&args.out)?;
+    let folder = OutputFolder::create(&args.out, OUTPUTS)?;
+    let out = folder.path();
     let log = read_log(args)?;
-    let mut observations: Vec<Observation> = read_ranges(ranges)?
-        .into_iter()
-        .map(Observation::Range)
-        .collect();
-    if let Some(path) = &args.imu {
-        observations.extend(read_imu(path)?.into_iter().map(Observation::Imu));
+    if let Some(pf) = &config.particle_filter {
+        ensure_fits_memory(particle_maps_min_bytes(pf, &log.scans), pf.particles)?;
     }
-    if let Some(path) = &args.flow {
-        observations.extend(read_flow(path)?.into_iter().map(Observation::Flow));
-    }
-    let readings = json!({
-        "ranges": observations.iter().filter(|o| matches!(o, Observation::Range(_))).count(),
-        "imu": observations.iter().filter(|o| matches!(o, Observation::Imu(_))).count(),
-        "flow": observations.iter().filter(|o| matches!(o, Observation::Flow(_))).count(),
-    });
+    let readings = read_observations(ranges, args.imu.as_deref(), args.flow.as_deref())?;
+    let mut observations = readings.observations;
     observations.extend(log.scans.iter().cloned().map(Observation::Scan));
     let (session, what) = match (&args.localize, &args.continue_map) {
-        (Some(map), _) => (
-            DroneSlam::localise(config.clone(), DroneMap::load(map)?)?,
-            "localise",
-        ),
-        (None, Some(map)) => (
-            DroneSlam::resume(config.clone(), DroneMap::load(map)?)?,
-            "continue",
-        ),
+        (Some(map), _) => (DroneSlam::localise(config.clone(), DroneMap::load(map)?)?, "localise"),
+        (None, Some(map)) => (DroneSlam::resume(config.clone(), DroneMap::load(map)?)?, "continue"),
         (None, None) => (DroneSlam::new(config.clone())?, "layered"),
     };
     let session = run_session(time_ordered(observations), session);
@@ -72,14 +61,13 @@ pub fn run(args: &LidarArgs, ranges: &Path) -> anyhow::Result<()> {
     write_tum(&out.join("trajectory.tum"), &trajectory)?;
     let grid_config = OccupancyGridConfig::default();
     let grids = session.layer_grids(&log.scans, &session.map_from_world(), &grid_config)?;
-    let layer_files = write_grids(&out, &grids)?;
+    let layer_files = write_grids(out, &grids)?;
     write_ply(&out.join("cloud.ply"), &session.merged_cloud())?;
     let pf = match (session.particle_filter(), session.pf_trajectory()) {
         (Some(pf), Some(poses)) => {
             write_tum(&out.join("trajectory_pf.tum"), &poses)?;
             if let Some(grid) = pf.map() {
-                save_map_yaml(grid, &out.join("map_pf.yaml"))?;
-                save_png(grid, &out.join("map_pf.png"))?;
+                write_grid(grid, &out.join("map_pf"))?;
             }
             json!({ "stats": pf.stats(), "timings_ms": timings_json(pf.timings()) })
         }
@@ -104,7 +92,7 @@ pub fn run(args: &LidarArgs, ranges: &Path) -> anyhow::Result<()> {
             "odometry_rejected": session.odometry_rejected(),
             "unreadable_lines": log.skipped.len(),
         },
-        "readings": readings,
+        "readings": readings.counts,
         "stats": stats,
         "layers": layer_files
             .iter()
@@ -116,9 +104,9 @@ pub fn run(args: &LidarArgs, ranges: &Path) -> anyhow::Result<()> {
         "peak_rss_bytes": peak_rss_bytes(),
         "metrics": relations_metrics(args, &trajectory)?,
     });
-    write_report(&out, &report)?;
+    finish(folder, &report)?;
     println!("{} height layers", layer_files.len());
-    print_summary(&out, &report);
+    print_summary(&args.out, &report);
     let Some(stats) = session.in_map_stats() else {
         return Ok(());
     };

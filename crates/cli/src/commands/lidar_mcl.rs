@@ -4,16 +4,16 @@
 //! as the session paths.
 
 use crate::commands::lidar::{
-    ensure_usable, load_config, print_summary, read_log, relations_metrics, LidarArgs,
+    load_config, print_summary, read_log, relations_metrics, LidarArgs, OUTPUTS,
 };
-use crate::output::{
-    peak_rss_bytes, prepare_out_dir, progress_bar, timings_json, write_report, Unsuccessful,
-};
+use crate::output::{finish, peak_rss_bytes, progress_bar, timings_json, write_grid, Unsuccessful};
 use anyhow::Context;
 use serde_json::json;
+use slamkit_io::output_folder::OutputFolder;
 use slamkit_lidar::icp_slam::IcpSlamConfig;
 use slamkit_lidar::mcl::{run_mcl, MclConfig};
-use slamkit_map::{load_map_yaml, save_map_yaml, save_png};
+use slamkit_map::load_map_yaml;
+use slamkit_slam::lidar::preflight::ensure_usable;
 use std::path::Path;
 use std::time::Instant;
 
@@ -23,17 +23,17 @@ pub fn run_localization(args: &LidarArgs, map_path: &Path) -> anyhow::Result<()>
     let config = load_config::<MclConfig>(args, "mcl")?;
     let map = load_map_yaml(map_path)
         .with_context(|| format!("loading the map {}", map_path.display()))?;
-    let out = prepare_out_dir(&args.out)?;
+    let folder = OutputFolder::create(&args.out, OUTPUTS)?;
+    let out = folder.path();
     let log = read_log(args)?;
-    ensure_usable(args, &log, &IcpSlamConfig::default())?;
+    ensure_usable(&log.scans, &IcpSlamConfig::default()).context(args.log.display().to_string())?;
     let bar = progress_bar(log.scans.len() as u64, "mcl");
     let result = run_mcl(&log.scans, &map, &config, |_| bar.inc(1))
         .with_context(|| format!("localising in {}", map_path.display()))?;
     bar.finish_and_clear();
 
     slamkit_io::trajectory_file::write_tum(&out.join("trajectory.tum"), &result.trajectory)?;
-    save_map_yaml(&map, &out.join("map.yaml"))?;
-    save_png(&map, &out.join("map.png"))?;
+    write_grid(&map, &out.join("map"))?;
     let s = &result.stats;
     let report = json!({
         "input": args.log,
@@ -54,8 +54,8 @@ pub fn run_localization(args: &LidarArgs, map_path: &Path) -> anyhow::Result<()>
         "peak_rss_bytes": peak_rss_bytes(),
         "metrics": relations_metrics(args, &result.trajectory)?,
     });
-    write_report(&out, &report)?;
-    print_summary(&out, &report);
+    finish(folder, &report)?;
+    print_summary(&args.out, &report);
     match s.first_converged_scan {
         Some(scan) => println!("converged at scan {scan}"),
         None => {

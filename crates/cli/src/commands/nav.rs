@@ -13,19 +13,31 @@
 //! `metrics.max_cross_track_m`, ...).
 
 use crate::commands::plan::parse_xy;
-use crate::output::{peak_rss_bytes, prepare_out_dir, timings_json, write_report, Unsuccessful};
+use crate::output::{finish, peak_rss_bytes, timings_json, Unsuccessful};
 use crate::settings::settings;
 use anyhow::Context;
 use nalgebra::Point2;
 use serde_json::json;
 use slamkit_core::Pose2;
 use slamkit_io::image_writer::save_rgb_png;
+use slamkit_io::output_folder::OutputFolder;
 use slamkit_io::write_tum;
 use slamkit_sim::World;
 use slamkit_slam::ground_robot::closed_loop::{run_nav_loop, FrameRecord, NavLoopConfig};
 use slamkit_vo::FrameStatus;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+
+/// The files `slamkit nav` writes in `--out`.
+#[rustfmt::skip]
+const OUTPUTS: &[&str] = &[
+    "trajectory.tum",
+    "groundtruth.tum",
+    "map.png",
+    "map.skmap",
+    "frames.csv",
+    "report.json",
+];
 
 /// Arguments of `slamkit nav`.
 #[derive(Debug, clap::Args)]
@@ -72,8 +84,9 @@ pub fn run(args: &NavArgs) -> anyhow::Result<()> {
         args.profile.as_deref(),
         args.config.as_deref(),
     )?;
+    let folder = OutputFolder::create(&args.out, OUTPUTS)?;
+    let out = folder.path();
     let outcome = run_nav_loop(world, goal, args.seed, &config)?;
-    let out = prepare_out_dir(&args.out)?;
     write_tum(&out.join("trajectory.tum"), &outcome.estimate)?;
     write_tum(&out.join("groundtruth.tum"), &outcome.ground_truth)?;
     save_rgb_png(&out.join("map.png"), &outcome.map_image(&config))?;
@@ -103,7 +116,7 @@ pub fn run(args: &NavArgs) -> anyhow::Result<()> {
         "wall_seconds": started.elapsed().as_secs_f64(),
         "peak_rss_bytes": peak_rss_bytes(),
     });
-    write_report(&out, &report)?;
+    finish(folder, &report)?;
     println!(
         "{} after {:.1} s: driven {:.2} m (shortest {:.2} m), max cross-track {:.3} m, {:.2} m \
          from the goal; written to {}",
@@ -117,7 +130,7 @@ pub fn run(args: &NavArgs) -> anyhow::Result<()> {
         o.optimal.length_m,
         o.max_cross_track_m,
         o.final_distance_m,
-        out.display()
+        args.out.display()
     );
     if !o.reached {
         return Err(Unsuccessful(format!(

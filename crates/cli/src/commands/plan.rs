@@ -6,35 +6,19 @@
 //! first and through unknown cells only when that fails. Writes `path.csv` (the waypoints),
 //! `map.png` (the path drawn on the map) and `report.json`.
 
-use crate::output::{peak_rss_bytes, prepare_out_dir, write_report};
+use crate::output::{finish, peak_rss_bytes};
 use anyhow::Context;
+use clap::builder::{PossibleValuesParser, TypedValueParser};
 use nalgebra::Point2;
 use serde_json::json;
 use slamkit_io::image_writer::save_rgb_png;
+use slamkit_io::output_folder::OutputFolder;
 use slamkit_map::{load_map_yaml, TriGrid};
 use slamkit_nav::render::draw_path;
 use slamkit_nav::{plan_on_grid, GridPlanner, PlannedPath};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-
-/// Grid planners.
-#[derive(Debug, Clone, Copy, clap::ValueEnum)]
-pub enum Planner {
-    /// Breadth-first search, 8-neighbourhood.
-    Bfs,
-    /// A* with the octile heuristic.
-    Astar,
-}
-
-impl From<Planner> for GridPlanner {
-    fn from(p: Planner) -> Self {
-        match p {
-            Planner::Bfs => GridPlanner::Bfs,
-            Planner::Astar => GridPlanner::Astar,
-        }
-    }
-}
 
 /// The grid of a ROS map_server YAML (its known part), or of a `.skmap`
 /// ([`slamkit_slam::map_file::export::planning_grid`]).
@@ -60,9 +44,10 @@ pub struct PlanArgs {
     /// Goal position in map coordinates, `X,Y` (m).
     #[arg(long, allow_hyphen_values = true)]
     pub goal: String,
-    /// Planner.
-    #[arg(long, value_enum, default_value = "astar")]
-    pub planner: Planner,
+    /// Planner: `astar` (A* with the octile heuristic) or `bfs` (breadth-first search,
+    /// 8-neighbourhood).
+    #[arg(long, default_value = "astar", value_parser = planner_parser())]
+    pub planner: GridPlanner,
     /// Obstacles grow by this many cells (Chebyshev), the robot's radius: 2 gives a 5 × 5
     /// footprint.
     #[arg(long, default_value_t = 2)]
@@ -70,6 +55,13 @@ pub struct PlanArgs {
     /// Output folder.
     #[arg(long, default_value = "out/plan")]
     pub out: PathBuf,
+}
+
+fn planner_parser() -> impl TypedValueParser<Value = GridPlanner> {
+    PossibleValuesParser::new(["bfs", "astar"]).map(|s| match s.as_str() {
+        "bfs" => GridPlanner::Bfs,
+        _ => GridPlanner::Astar,
+    })
 }
 
 /// Parses `X,Y` in metres.
@@ -95,8 +87,10 @@ pub fn run(args: &PlanArgs) -> anyhow::Result<()> {
     let goal = parse_xy(&args.goal, "goal")?;
     let grid =
         load_grid(&args.map).with_context(|| format!("reading map {}", args.map.display()))?;
+    let folder = OutputFolder::create(&args.out, &["path.csv", "map.png", "report.json"])?;
+    let out = folder.path();
     let inflated = grid.inflated(args.inflate_cells);
-    let planner = GridPlanner::from(args.planner);
+    let planner = args.planner;
     let plan_started = Instant::now();
     let path = plan_on_grid(&inflated, &start, &goal, planner).with_context(|| {
         format!(
@@ -109,7 +103,6 @@ pub fn run(args: &PlanArgs) -> anyhow::Result<()> {
         )
     })?;
     let plan_ms = plan_started.elapsed().as_secs_f64() * 1e3;
-    let out = prepare_out_dir(&args.out)?;
     write_path_csv(&out.join("path.csv"), &path)?;
     save_rgb_png(
         &out.join("map.png"),
@@ -140,7 +133,13 @@ pub fn run(args: &PlanArgs) -> anyhow::Result<()> {
         "wall_s": started.elapsed().as_secs_f64(),
         "peak_rss_bytes": peak_rss_bytes(),
     });
-    write_report(&out, &report)?;
+    finish(folder, &report)?;
+    if path.cells.len() == 1 {
+        println!(
+            "start and goal lie in one cell of the map ({} m a side): the path is that cell",
+            grid.resolution_m()
+        );
+    }
     println!(
         "path: {:.2} m, {} waypoints{}, {:.1} ms; written to {}",
         path.length_m,
@@ -151,7 +150,7 @@ pub fn run(args: &PlanArgs) -> anyhow::Result<()> {
             ""
         },
         plan_ms,
-        out.display()
+        args.out.display()
     );
     Ok(())
 }

@@ -12,12 +12,13 @@
 //! 1.5 MB a frame). The same world, sensors, robot, duration and seed give the same files byte
 //! for byte.
 
-use crate::output::{peak_rss_bytes, prepare_out_dir, timings_json, write_report};
+use crate::output::{finish, peak_rss_bytes, timings_json};
 use crate::settings::settings;
 use anyhow::Context;
 use serde_json::json;
 use slamkit_core::StageTimings;
-use slamkit_sim::recording::{write_recording, Sensor};
+use slamkit_io::output_folder::OutputFolder;
+use slamkit_sim::recording::{write_recording, Sensor, KITTI_FOLDER, TUM_FOLDER};
 use slamkit_sim::{RobotKind, SimConfig, Simulation, World};
 use std::path::PathBuf;
 use std::time::Instant;
@@ -35,15 +36,15 @@ pub struct SimArgs {
     /// path.
     #[arg(long, value_enum, default_value = "drone")]
     pub robot: Robot,
-    /// Simulate only the first this many seconds of the run \[s\].
-    #[arg(long)]
+    /// Simulate only the first SECONDS of the run.
+    #[arg(long, value_name = "SECONDS")]
     pub duration: Option<f64>,
     /// Named profile of the robot (or a profile file `X.toml`): its `[sim]` settings.
     #[arg(long)]
     pub profile: Option<String>,
-    /// TOML file with simulation settings laid over the profile's (fields of SimConfig, such
-    /// as `[rgbd] rate_hz = 15` or `[diff_drive] speed_mps = 0.25`); `--robot` wins over its
-    /// `robot`.
+    /// TOML file with simulation settings laid over the profile's (the fields report.json
+    /// shows under `config`, such as `[rgbd] rate_hz = 15` or `[diff_drive] speed_mps = 0.25`);
+    /// `--robot` wins over its `robot`.
     #[arg(long)]
     pub config: Option<PathBuf>,
     /// Seed of every random choice.
@@ -62,6 +63,13 @@ pub enum Robot {
     /// A differential-drive ground robot driving the world's drive path.
     DiffDrive,
 }
+
+/// The files and folders `slamkit sim` writes in `--out` (by sensor).
+#[rustfmt::skip]
+const OUTPUTS: &[&str] = &[
+    "world.toml", "report.json", "groundtruth.tum", "lidar.clf", "lidar.relations", "ranges.csv",
+    "imu.csv", "flow.csv", TUM_FOLDER, KITTI_FOLDER,
+];
 
 const SENSOR_NAMES: &str = "lidar2d, range, imu, flow, rgbd, stereo";
 
@@ -108,12 +116,12 @@ pub fn run(args: &SimArgs) -> anyhow::Result<()> {
         Some(d) => anyhow::bail!("--duration {d}: must be a number of seconds, 0 or more"),
         None => sim.duration_s(),
     };
-    let out = prepare_out_dir(&args.out)?;
-    let world_path = out.join("world.toml");
-    std::fs::write(&world_path, world_toml)
-        .with_context(|| format!("writing {}", world_path.display()))?;
+    let folder = OutputFolder::create(&args.out, OUTPUTS)?;
+    let out = folder.path();
+    std::fs::write(out.join("world.toml"), world_toml)
+        .with_context(|| format!("writing world.toml in {}", args.out.display()))?;
     let mut timings = StageTimings::default();
-    let written = write_recording(&sim, &sensors, duration_s, &out, &mut timings)?;
+    let written = write_recording(&sim, &sensors, duration_s, out, &mut timings)?;
     let frames: serde_json::Map<String, serde_json::Value> = written
         .iter()
         .map(|w| {
@@ -141,13 +149,13 @@ pub fn run(args: &SimArgs) -> anyhow::Result<()> {
         "timings_ms": timings_json(&timings),
         "peak_rss_bytes": peak_rss_bytes(),
     });
-    write_report(&out, &report)?;
+    finish(folder, &report)?;
     println!(
         "simulated {:.1} s of {} in {:.1} s; outputs in {}",
         duration_s,
         sim.world.name,
         started.elapsed().as_secs_f64(),
-        out.display()
+        args.out.display()
     );
     Ok(())
 }

@@ -3,10 +3,11 @@
 //! cloud and report written to the output folder, and with `--save-map` the keyframes as a
 //! `.skmap` file.
 
-use crate::output::{peak_rss_bytes, prepare_out_dir, progress_bar, timings_json, write_report};
+use crate::output::{finish, peak_rss_bytes, progress_bar, timings_json};
 use crate::settings::settings;
 use anyhow::Context;
 use serde_json::json;
+use slamkit_io::output_folder::OutputFolder;
 use slamkit_io::{Dataset, DatasetFormat as IoFormat};
 use slamkit_slam::profile::layout_profile;
 use slamkit_slam::visual::{self, PointMapping, RunOptions, VisualSlam};
@@ -14,6 +15,19 @@ use slamkit_slam::Session;
 use slamkit_vo::{evaluate, FrontendKind, VoConfig};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+
+/// The files `slamkit vo` writes in `--out`.
+const OUTPUTS: &[&str] = &[
+    "trajectory.tum",
+    "trajectory.kitti",
+    "groundtruth.tum",
+    "cloud.ply",
+    "report.json",
+];
+
+/// Below this path length \[m\] the end-point error is not given as a percentage of the path:
+/// a centimetre over a few centimetres of path would read as tens of percent.
+const MIN_PATH_FOR_DRIFT_M: f64 = 1.0;
 
 /// Dataset folder layouts `slamkit vo` reads.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -56,8 +70,8 @@ pub struct VoArgs {
     /// `kinect-v1` for 7scenes, none for tum and redwood).
     #[arg(long)]
     pub profile: Option<String>,
-    /// TOML file with settings laid over the profile's (the fields of VoConfig, see the
-    /// README's configuration section).
+    /// TOML file with settings laid over the profile's (the fields report.json shows under
+    /// `config`; see the README's configuration section).
     #[arg(long)]
     pub config: Option<PathBuf>,
     /// Visual SLAM: keyframes, place recognition and loop closure over the odometry (the
@@ -79,12 +93,25 @@ pub struct VoArgs {
 pub fn run(args: &VoArgs) -> anyhow::Result<()> {
     let started = Instant::now();
     let format = match args.format {
-        Some(f) => f,
+        Some(f) => io_format(f),
         None => detect_format(&args.dataset_dir)?,
     };
     let config = load_config(args, format)?;
-    let out = prepare_out_dir(&args.out)?;
-    let dataset = Dataset::open(&args.dataset_dir, io_format(format))
+    let folder = OutputFolder::create(&args.out, OUTPUTS)?;
+    let out = folder.path();
+    if let Some(parent) = args.save_map.as_deref().and_then(Path::parent) {
+        let parent = if parent.as_os_str().is_empty() {
+            Path::new(".")
+        } else {
+            parent
+        };
+        anyhow::ensure!(
+            parent.is_dir(),
+            "--save-map: the folder {} does not exist",
+            parent.display()
+        );
+    }
+    let dataset = Dataset::open(&args.dataset_dir, format)
         .with_context(|| format!("opening {}", args.dataset_dir.display()))?;
     anyhow::ensure!(
         !dataset.is_empty(),
@@ -121,7 +148,7 @@ pub fn run(args: &VoArgs) -> anyhow::Result<()> {
 
     let traj_path = out.join("trajectory.tum");
     slamkit_io::trajectory_file::write_tum(&traj_path, &result.trajectory)?;
-    if format == DatasetFormat::Kitti {
+    if format == IoFormat::Kitti {
         slamkit_io::trajectory_file::write_kitti(
             &out.join("trajectory.kitti"),
             &result.trajectory,
@@ -157,7 +184,7 @@ pub fn run(args: &VoArgs) -> anyhow::Result<()> {
         "input": args.dataset_dir,
         "format": format!("{format:?}"),
         "realtime": args.realtime,
-        "profile": args.profile.as_deref().or_else(|| layout_profile(io_format(format))),
+        "profile": args.profile.as_deref().or_else(|| layout_profile(format)),
         "config": config,
         "frames": {
             "frames": result.stats.frames,
@@ -182,8 +209,8 @@ pub fn run(args: &VoArgs) -> anyhow::Result<()> {
         "loop_closure": loop_closure,
         "frame_status": result.frames,
     });
-    write_report(&out, &report)?;
-    print_summary(&out, &report);
+    finish(folder, &report)?;
+    print_summary(&args.out, &report);
     Ok(())
 }
 
@@ -198,23 +225,14 @@ fn io_format(f: DatasetFormat) -> IoFormat {
 }
 
 /// Tells the layout from the folder's content.
-fn detect_format(dir: &Path) -> anyhow::Result<DatasetFormat> {
+fn detect_format(dir: &Path) -> anyhow::Result<IoFormat> {
     let detected = slamkit_io::layout::detect_layout(dir)?;
-    let Some(format) = detected else {
-        anyhow::bail!("cannot tell the layout of {}: pass --format", dir.display())
-    };
-    Ok(match format {
-        IoFormat::Tum => DatasetFormat::Tum,
-        IoFormat::Kitti => DatasetFormat::Kitti,
-        IoFormat::SevenScenes => DatasetFormat::SevenScenes,
-        IoFormat::Redwood => DatasetFormat::Redwood,
-        IoFormat::Euroc => DatasetFormat::Euroc,
-    })
+    detected.with_context(|| format!("cannot tell the layout of {}: pass --format", dir.display()))
 }
 
 /// The front end's defaults, the profile's `[vo]` settings (the named one, or the layout's
 /// camera) over them, and the `--config` file's fields on top.
-fn load_config(args: &VoArgs, format: DatasetFormat) -> anyhow::Result<VoConfig> {
+fn load_config(args: &VoArgs, format: IoFormat) -> anyhow::Result<VoConfig> {
     let base = VoConfig {
         frontend: match args.frontend {
             Frontend::Klt => FrontendKind::Klt,
@@ -222,10 +240,7 @@ fn load_config(args: &VoArgs, format: DatasetFormat) -> anyhow::Result<VoConfig>
         },
         ..VoConfig::default()
     };
-    let profile = args
-        .profile
-        .as_deref()
-        .or_else(|| layout_profile(io_format(format)));
+    let profile = args.profile.as_deref().or_else(|| layout_profile(format));
     let mut config = settings(base, "vo", profile, args.config.as_deref())?;
     config.loop_closure.enabled |= args.slam;
     config.validate().context("checking the settings")?;
@@ -247,12 +262,19 @@ fn print_summary(out: &Path, report: &serde_json::Value) {
     }
     let m = &report["metrics"];
     if !m.is_null() {
+        let value = |key: &str| m[key].as_f64().unwrap_or(f64::NAN);
+        let path_m = value("path_length_m");
+        let end_point = if path_m >= MIN_PATH_FOR_DRIFT_M {
+            let drift = value("end_point_drift_percent");
+            format!("end-point drift {drift:.2} % of {path_m:.1} m")
+        } else {
+            let error = value("end_point_error_m");
+            format!("end-point error {error:.3} m (the path, {path_m:.2} m, is too short for a percentage)")
+        };
         println!(
-            "ATE RMSE {:.4} m, RPE RMSE {:.4} m, end-point drift {:.2} % of {:.1} m",
+            "ATE RMSE {:.4} m, RPE RMSE {:.4} m, {end_point}",
             m["ate"]["rmse"].as_f64().unwrap_or(f64::NAN),
             m["rpe"]["rmse"].as_f64().unwrap_or(f64::NAN),
-            m["end_point_drift_percent"].as_f64().unwrap_or(f64::NAN),
-            m["path_length_m"].as_f64().unwrap_or(f64::NAN)
         );
         if m["frames_without_ground_truth"].as_u64().unwrap_or(0) > 0 {
             println!(
