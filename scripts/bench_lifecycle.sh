@@ -6,7 +6,10 @@
 # trajectory_map.tum), the session time each run reports (report.json `session_seconds`: map
 # load, global search and every scan; the log's parsing is left out as it is the same for all),
 # the map's size and `slamkit map info`'s load time. Runs ROUNDS rounds (default 3) and prints
-# medians: the machine is shared, compare ratios.
+# medians: the machine is shared, compare ratios. Beside the session's speed-up, the ratio of the
+# two whole processes' CPU time (user + sys, /usr/bin/time): contention on a loaded machine
+# slows wall times unevenly, CPU time much less; parsing and writing are in both processes, so
+# it understates the session's ratio.
 # usage: [ROUNDS=3] [LOGS="intel aces mit-csail"] [SLAMKIT_BIN=...] scripts/bench_lifecycle.sh [OUTDIR]
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
@@ -44,8 +47,10 @@ open(out + '/first.clf', 'w').writelines(lines[:cut])
 open(out + '/second.clf', 'w').writelines(head + odom + lines[cut:])
 PY
   for r in $(seq 1 "$rounds"); do
-    "$slamkit" lidar "$log" --relations "$rel" --save-map "$o/map.skmap" --out "$o/map-$r" >/dev/null
-    "$slamkit" lidar "$log" --relations "$rel" --localize "$o/map.skmap" --out "$o/loc-$r" >/dev/null
+    /usr/bin/time -f "%U %S" -o "$o/map-$r.cpu" \
+      "$slamkit" lidar "$log" --relations "$rel" --save-map "$o/map.skmap" --out "$o/map-$r" >/dev/null
+    /usr/bin/time -f "%U %S" -o "$o/loc-$r.cpu" \
+      "$slamkit" lidar "$log" --relations "$rel" --localize "$o/map.skmap" --out "$o/loc-$r" >/dev/null
     "$slamkit" lidar "$o/first.clf" --relations "$rel" --save-map "$o/first.skmap" --out "$o/first-$r" >/dev/null
     "$slamkit" lidar "$o/second.clf" --relations "$rel" --continue "$o/first.skmap" --out "$o/cont-$r" >/dev/null
     "$slamkit" eval relations --relations "$rel" --est "$o/cont-$r/trajectory_map.tum" --json > "$o/cont-$r/whole.json"
@@ -61,10 +66,13 @@ m = [rep('map', r) for r in rs]; l = [rep('loc', r) for r in rs]
 whole = json.load(open(f'{o}/cont-1/whole.json'))
 info = [json.load(open(f'{o}/info-{r}.json')) for r in rs]
 t_map = med(x['session_seconds'] for x in m); t_loc = med(x['session_seconds'] for x in l)
+def cpu(kind, r): return sum(float(v) for v in open(f'{o}/{kind}-{r}.cpu').read().split()[-2:])
+c_map = med(cpu('map', r) for r in rs); c_loc = med(cpu('loc', r) for r in rs)
 e_map = m[0]['metrics']['relations']; e_loc = l[0]['metrics']['relations']
 print(f"| {name} | {e_map['trans_mean']:.4f} m, {e_map['rot_mean_deg']:.3f}° | {t_map:.2f} s "
       f"| {e_loc['trans_mean']:.4f} m, {e_loc['rot_mean_deg']:.3f}° "
-      f"({e_loc['trans_mean'] / e_map['trans_mean']:.2f}×) | {t_loc:.2f} s ({t_map / t_loc:.1f}× faster) "
+      f"({e_loc['trans_mean'] / e_map['trans_mean']:.2f}×) | {t_loc:.2f} s ({t_map / t_loc:.1f}× faster; "
+      f"CPU {c_map:.1f} / {c_loc:.1f} s, {c_map / c_loc:.1f}×) "
       f"| scan {l[0]['session']['first_fix_scan']} "
       f"| {whole['trans_mean']:.4f} m, {whole['rot_mean_deg']:.3f}° ({whole['trans_mean'] / e_map['trans_mean']:.2f}×) "
       f"| {info[0]['file_bytes'] / 1e6:.2f} MB | {med(i['load_seconds'] for i in info) * 1e3:.0f} ms |")

@@ -1,8 +1,8 @@
 //! Nearest-neighbour search over 2D points, keeping the points (and optional surface normals)
 //! beside the index, so matchers get geometry back rather than bare indices: [`PointIndex`], a
-//! thin wrapper over kiddo's immutable k-d tree (unbounded and k-nearest queries), and
-//! [`GridIndex`], a uniform grid that answers the radius-bounded queries of ICP faster. ICP
-//! takes either through [`NearestNeighbours`].
+//! thin wrapper over kiddo's immutable k-d tree (unbounded queries), and [`GridIndex`], a
+//! uniform grid that answers the radius-bounded queries of ICP and the k-nearest queries of
+//! the normals faster. ICP takes either through [`NearestNeighbours`].
 
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use nalgebra::{Point2, UnitComplex, Vector2};
@@ -189,22 +189,6 @@ impl PointIndex {
     fn item_index(&self, item: u64) -> Option<usize> {
         self.tree_items.get(usize::try_from(item).ok()?).copied()
     }
-
-    /// Up to `k` nearest indexed points to `query`, closest first.
-    pub fn nearest_k(&self, query: &Point2<f64>, k: usize) -> Vec<Neighbour> {
-        let (Some(tree), Some(q)) = (self.tree.as_ref(), self.tree_query(query)) else {
-            return Vec::new();
-        };
-        tree.nearest_n::<SquaredEuclidean>(&q, k)
-            .into_iter()
-            .filter_map(|nn| {
-                Some(Neighbour {
-                    index: self.item_index(nn.item)?,
-                    distance_m: nn.distance.sqrt(),
-                })
-            })
-            .collect()
-    }
 }
 
 #[cfg(test)]
@@ -232,10 +216,6 @@ mod tests {
             let brute = brute_nearest(&pts, &q);
             let nn = index.nearest(&q).unwrap();
             assert!((nn.distance_m - brute).abs() < 1e-9);
-            let k = index.nearest_k(&q, 3);
-            assert_eq!(k.len(), 3);
-            assert!((k[0].distance_m - brute).abs() < 1e-9);
-            assert!(k[0].distance_m <= k[1].distance_m && k[1].distance_m <= k[2].distance_m);
         }
     }
 
@@ -276,7 +256,6 @@ mod tests {
     fn empty_index_and_duplicates() {
         let empty = PointIndex::new(Vec::new(), None);
         assert!(empty.nearest(&Point2::origin()).is_none());
-        assert!(empty.nearest_k(&Point2::origin(), 4).is_empty());
         let mut pts = vec![Point2::new(1.0, 1.0); 100];
         pts.push(Point2::new(f64::NAN, 0.0));
         let dup = PointIndex::new(pts, None);
