@@ -24,9 +24,9 @@ use slamkit_io::output_folder::OutputFolder;
 use slamkit_io::write_tum;
 use slamkit_lidar::rbpf::RbpfConfig;
 use slamkit_map::OccupancyGridConfig;
+use slamkit_slam::drone::map::DroneMap;
 use slamkit_slam::drone::particle_filter::drone_pf_config;
 use slamkit_slam::lidar::preflight::particle_maps_min_bytes;
-use slamkit_slam::drone::map::DroneMap;
 use slamkit_slam::{DroneSlam, DroneSlamConfig, Session};
 use std::path::Path;
 use std::time::Instant;
@@ -51,8 +51,14 @@ pub fn run(args: &LidarArgs, ranges: &Path) -> anyhow::Result<()> {
     let mut observations = readings.observations;
     observations.extend(log.scans.iter().cloned().map(Observation::Scan));
     let (session, what) = match (&args.localize, &args.continue_map) {
-        (Some(map), _) => (DroneSlam::localise(config.clone(), DroneMap::load(map)?)?, "localise"),
-        (None, Some(map)) => (DroneSlam::resume(config.clone(), DroneMap::load(map)?)?, "continue"),
+        (Some(map), _) => (
+            DroneSlam::localise(config.clone(), DroneMap::load(map)?)?,
+            "localise",
+        ),
+        (None, Some(map)) => (
+            DroneSlam::resume(config.clone(), DroneMap::load(map)?)?,
+            "continue",
+        ),
         (None, None) => (DroneSlam::new(config.clone())?, "layered"),
     };
     let session = run_session(time_ordered(observations), session);
