@@ -4,7 +4,7 @@
 //! (every layer takes keyframes).
 //!
 //! The saved keyframes are never moved: they are the reference the new ones are corrected
-//! against ([`super::relocalise`] spreads its corrections over the keyframes of this run only).
+//! against ([`mod@super::relocalise`] spreads its corrections over the keyframes of this run only).
 //! Their times are moved onto this run's clock, to end `min_age_s` before the start (plus a
 //! second), so that re-localisation and the reference layers take them as old maps at once and
 //! a recording whose clock restarted at zero works as one stamped with wall time.
