@@ -18,6 +18,18 @@ use std::process::Command;
 /// Largest position difference allowed \[m\].
 const TOLERANCE_M: f64 = 1e-3;
 
+/// `slamkit lidar` on the simulator's recording in `rec/`.
+const RECORDING: [&str; 8] = [
+    "lidar",
+    "rec/lidar.clf",
+    "--ranges",
+    "rec/ranges.csv",
+    "--imu",
+    "rec/imu.csv",
+    "--flow",
+    "rec/flow.csv",
+];
+
 fn slamkit(args: &[&str], dir: &Path) {
     let run = Command::new(env!("CARGO_BIN_EXE_slamkit"))
         .args(args)
@@ -88,27 +100,9 @@ fn check_seed(seed: u64) {
         .collect::<Vec<_>>(),
         dir.path(),
     );
-    slamkit(
-        &[
-            "lidar",
-            "rec/lidar.clf",
-            "--ranges",
-            "rec/ranges.csv",
-            "--imu",
-            "rec/imu.csv",
-            "--flow",
-            "rec/flow.csv",
-            "--method",
-            "rbpf",
-            "--seed",
-            &seed_arg,
-            "--save-map",
-            "rec/map.skmap",
-            "--out",
-            "out",
-        ],
-        dir.path(),
-    );
+    let rbpf = ["--method", "rbpf", "--seed", &seed_arg];
+    let mapping = ["--save-map", "rec/map.skmap", "--out", "out"];
+    slamkit(&[&RECORDING[..], &rbpf, &mapping].concat(), dir.path());
     let out = dir.path().join("out");
     for file in ["report.json", "map.yaml", "cloud.ply", "trajectory_pf.tum"] {
         assert!(out.join(file).exists(), "{file} written");
@@ -136,23 +130,8 @@ fn check_seed(seed: u64) {
         .collect();
     assert!(heights.len() > 3, "layer heights in the cloud: {heights:?}");
     // the same recording localised in its own saved map, the start pose not given
-    slamkit(
-        &[
-            "lidar",
-            "rec/lidar.clf",
-            "--ranges",
-            "rec/ranges.csv",
-            "--imu",
-            "rec/imu.csv",
-            "--flow",
-            "rec/flow.csv",
-            "--localize",
-            "rec/map.skmap",
-            "--out",
-            "loc",
-        ],
-        dir.path(),
-    );
+    let localise = ["--localize", "rec/map.skmap", "--out", "loc"];
+    slamkit(&[&RECORDING[..], &localise].concat(), dir.path());
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.path().join("loc/report.json")).unwrap())
             .unwrap();
