@@ -33,7 +33,7 @@ mod prepare;
 pub mod simulated;
 
 pub use keyframes::{Keyframe, VisualMap};
-pub use loop_closing::{LoopClosure, LoopStats};
+pub use loop_closing::{check_closures, LoopClosure, LoopStats};
 pub use pipeline::{run, FrameRecord, RunOptions, RunStats, VisualRun};
 pub use point_map::PointMapping;
 pub use prepare::{FramePreparer, PreparedObservation};

@@ -12,7 +12,7 @@ use std::path::Path;
 use slamkit_io::{Dataset, DatasetFormat};
 use slamkit_slam::profile::Profile;
 use slamkit_slam::visual::{self, LoopStats, RunOptions, VisualSlam};
-use slamkit_vo::metrics::{check_closures, ClosureCheck};
+use slamkit_vo::metrics::ClosureCheck;
 use slamkit_vo::{evaluate, FrontendKind, VoConfig, VoMetrics};
 
 /// Runs `profile` with `frontend` and loop closure on; the metrics, the back end's counts and
@@ -45,17 +45,7 @@ fn run(
     .unwrap();
     let gt = dataset.ground_truth().unwrap();
     let (stats, closures) = session.loop_closures().unwrap();
-    let relative: Vec<_> = closures
-        .iter()
-        .map(|c| {
-            (
-                c.query_timestamp,
-                c.candidate_timestamp,
-                c.candidate_from_query,
-            )
-        })
-        .collect();
-    let check = check_closures(&relative, gt);
+    let check = visual::check_closures(&closures, gt);
     // the map a run saves holds its keyframes where loop closure left them
     let worst = session
         .map()

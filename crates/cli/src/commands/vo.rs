@@ -155,19 +155,9 @@ pub fn run(args: &VoArgs) -> anyhow::Result<()> {
         )?;
     }
     let loop_closure = loops.map(|(stats, closures)| {
-        let relative: Vec<_> = closures
-            .iter()
-            .map(|c| {
-                (
-                    c.query_timestamp,
-                    c.candidate_timestamp,
-                    c.candidate_from_query,
-                )
-            })
-            .collect();
         let check = dataset
             .ground_truth()
-            .map(|gt| slamkit_vo::metrics::check_closures(&relative, gt));
+            .map(|gt| slamkit_slam::visual::check_closures(&closures, gt));
         json!({ "stats": stats, "closures": closures, "against_ground_truth": check })
     });
     let metrics = match dataset.ground_truth() {

@@ -21,6 +21,7 @@ use serde::Serialize;
 use slamkit_core::{Pose3, Trajectory};
 use slamkit_vo::covisibility::{associate, Covisibility, PlaceFeatures};
 use slamkit_vo::loop_closure::{verify, Consistency, LoopClosureConfig, VerifiedLoop};
+use slamkit_vo::metrics::ClosureCheck;
 use slamkit_vo::place_index::PlaceIndex;
 use slamkit_vo::pose_graph::{Edge, LmConfig, PoseGraph};
 use slamkit_vo::VoError;
@@ -28,6 +29,22 @@ use slamkit_vo::VoError;
 /// Odometry between keyframes across a tracking restart is a guess (the pose held over the
 /// failed frames): its edge is this many times less certain.
 const RESTART_SIGMA_FACTOR: f64 = 100.0;
+
+/// `closures` scored against `ground_truth` ([`slamkit_vo::metrics::check_closures`]): a
+/// closure is wrong when the truth disagrees with it by more than 0.3 m or 10°.
+pub fn check_closures(closures: &[LoopClosure], ground_truth: &Trajectory) -> ClosureCheck {
+    let relative: Vec<_> = closures
+        .iter()
+        .map(|c| {
+            (
+                c.query_timestamp,
+                c.candidate_timestamp,
+                c.candidate_from_query,
+            )
+        })
+        .collect();
+    slamkit_vo::metrics::check_closures(&relative, ground_truth)
+}
 
 /// Counts of the loop-closing back end.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
