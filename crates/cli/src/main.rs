@@ -5,7 +5,6 @@
 
 mod commands;
 mod output;
-mod settings;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;

@@ -161,14 +161,16 @@ pub(crate) fn pose_from_rows(rows: &[(usize, &str)], file: &str) -> Result<Pose3
     pose_from_matrix(&m).map_err(|msg| IoError::parse(file, rows.first().map_or(0, |r| r.0), msg))
 }
 
-/// Builds a unit quaternion from (w, x, y, z), normalising it. Fails on a zero-length or
-/// non-finite quaternion.
-pub(crate) fn unit_quaternion(
-    w: f64,
-    x: f64,
-    y: f64,
-    z: f64,
-) -> Result<UnitQuaternion<f64>, String> {
+/// Builds a unit quaternion from (w, x, y, z), normalising it, as every trajectory reader
+/// does (TUM, EuRoC, and the Python binding's arrays). Fails on a zero-length or non-finite
+/// quaternion.
+///
+/// ```
+/// let q = slamkit_io::trajectory_file::unit_quaternion(2.0, 0.0, 0.0, 0.0).unwrap();
+/// assert_eq!(q.w, 1.0);
+/// assert!(slamkit_io::trajectory_file::unit_quaternion(0.0, 0.0, 0.0, 0.0).is_err());
+/// ```
+pub fn unit_quaternion(w: f64, x: f64, y: f64, z: f64) -> Result<UnitQuaternion<f64>, String> {
     let q = Quaternion::new(w, x, y, z);
     let norm = q.norm();
     if !norm.is_finite() || norm < 1e-9 {

@@ -100,6 +100,36 @@ impl Default for LidarSlamConfig {
     }
 }
 
+impl LidarSlamConfig {
+    /// A session's settings as a shell builds them: the defaults with the profile's `[lidar]`
+    /// table (a built-in name or a `.toml` file), then the file `config` laid over the method's
+    /// part for a new map (ICP-SLAM's for [`LidarMethod::Icp`], the particle filter's for
+    /// [`LidarMethod::Rbpf`], as the batch runs took them) or over the whole session's
+    /// (`[icp]`, `[global_search]`, `[localise]`, ...) in a saved map.
+    ///
+    /// # Errors
+    /// [`SlamError::Config`] for an unknown profile or a field of either file that is unknown
+    /// or of the wrong type.
+    pub fn from_files(
+        method: LidarMethod,
+        in_saved_map: bool,
+        profile: Option<&str>,
+        config: Option<&Path>,
+    ) -> Result<Self, SlamError> {
+        use crate::profile::file_over;
+        let mut settings = crate::profile::settings(Self::default(), "lidar", profile, None)?;
+        if in_saved_map {
+            return file_over(settings, config);
+        }
+        settings.method = method;
+        match method {
+            LidarMethod::Icp => settings.icp = file_over(settings.icp, config)?,
+            LidarMethod::Rbpf => settings.rbpf = file_over(settings.rbpf, config)?,
+        }
+        Ok(settings)
+    }
+}
+
 /// Counters of a session.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
 pub struct LidarSessionStats {

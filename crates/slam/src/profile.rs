@@ -163,6 +163,41 @@ impl Profile {
     }
 }
 
+/// `base` with the `[section]` table of the profile `profile` (a built-in name or a `.toml`
+/// file) and then the file `config` laid over it: how every shell (the CLI, the Python
+/// binding) builds a session's settings.
+///
+/// # Errors
+/// [`SlamError::Config`] for an unknown profile, one without `[section]`, or a field of either
+/// file that is unknown or of the wrong type.
+pub fn settings<C: Serialize + DeserializeOwned>(
+    base: C,
+    section: &str,
+    profile: Option<&str>,
+    config: Option<&Path>,
+) -> Result<C, SlamError> {
+    let base = match profile {
+        Some(name) => Profile::resolve(name)?.apply(section, base)?,
+        None => base,
+    };
+    file_over(base, config)
+}
+
+/// `base` with the file `config` laid over it ([`config_file_over`]), or `base` itself
+/// without one.
+///
+/// # Errors
+/// As [`config_file_over`].
+pub fn file_over<C: Serialize + DeserializeOwned>(
+    base: C,
+    config: Option<&Path>,
+) -> Result<C, SlamError> {
+    match config {
+        Some(path) => config_file_over(base, path),
+        None => Ok(base),
+    }
+}
+
 /// `base` with the TOML file at `path` laid over it (the file holds the settings' own fields,
 /// at the top level).
 ///

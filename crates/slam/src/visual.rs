@@ -40,12 +40,13 @@ pub use prepare::{FramePreparer, PreparedObservation};
 
 use cpu_time::ThreadTime;
 use slamkit_core::{Observation, Pose3, StageTimings, Trajectory};
-use slamkit_io::Dataset;
+use slamkit_io::{Dataset, DatasetFormat};
 use slamkit_vo::frame::Rig;
-use slamkit_vo::{FrameStatus, Odometry, TrackingMode, VoConfig, VoxelMap};
+use slamkit_vo::{FrameStatus, FrontendKind, Odometry, TrackingMode, VoConfig, VoxelMap};
 use std::path::Path;
 
 use crate::map_file;
+use crate::profile::layout_profile;
 use crate::session::{MapChange, Session, TrackingStatus, Update};
 use crate::SlamError;
 use loop_closing::LoopClosing;
@@ -427,6 +428,32 @@ impl Session for VisualSlam {
             .save(path)
             .map_err(map_error)
     }
+}
+
+/// A camera session's settings as a shell builds them: `frontend`'s defaults, the profile's
+/// `[vo]` table over them (the named profile, or else the camera of the dataset's layout,
+/// [`layout_profile`]), the file `config`'s fields on top, and loop closure switched on
+/// when `slam` asks for it; then checked.
+///
+/// # Errors
+/// [`SlamError::Config`] for an unknown profile or field, [`SlamError::Vo`] for settings out
+/// of range.
+pub fn session_settings(
+    frontend: FrontendKind,
+    format: DatasetFormat,
+    profile: Option<&str>,
+    config: Option<&Path>,
+    slam: bool,
+) -> Result<VoConfig, SlamError> {
+    let base = VoConfig {
+        frontend,
+        ..VoConfig::default()
+    };
+    let profile = profile.or_else(|| layout_profile(format));
+    let mut settings = crate::profile::settings(base, "vo", profile, config)?;
+    settings.loop_closure.enabled |= slam;
+    settings.validate()?;
+    Ok(settings)
 }
 
 /// The camera rig of a dataset: what a [`VisualSlam`] on it is built with.

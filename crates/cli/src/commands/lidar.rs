@@ -10,7 +10,6 @@ use crate::output::{
     ensure_fits_memory, error_chain, finish, peak_rss_bytes, progress_bar, timings_json,
     write_grid, Unsuccessful,
 };
-use crate::settings::{settings, with_file};
 use anyhow::Context;
 use serde::de::DeserializeOwned;
 use serde::Serialize;
@@ -20,6 +19,7 @@ use slamkit_io::carmen::CarmenLog;
 use slamkit_io::output_folder::OutputFolder;
 use slamkit_slam::lidar::preflight::{ensure_usable, particle_maps_min_bytes};
 use slamkit_slam::lidar::LidarMap;
+use slamkit_slam::profile::settings;
 use slamkit_slam::{LidarMethod, LidarSlam, LidarSlamConfig};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -216,30 +216,25 @@ pub(crate) fn is_skmap(path: &Path) -> bool {
         .is_some_and(|e| e.eq_ignore_ascii_case("skmap"))
 }
 
-/// The session's settings: defaults, with `--config` laid over the method's part for a new
-/// map (ICP-SLAM's for `icp`, the particle filter's for `rbpf`, as the batch runs took them),
-/// and over the whole session's ([`LidarSlamConfig`]: `[icp]`, `[global_search]`,
-/// `[localise]`, ...) in a saved map.
+/// The session's settings ([`LidarSlamConfig::from_files`]), with `--particles` and `--seed`
+/// for the particle filter.
 fn session_config(args: &LidarArgs) -> anyhow::Result<LidarSlamConfig> {
-    let mut config = settings(
-        LidarSlamConfig::default(),
-        "lidar",
+    let method = match args.method {
+        Method::Icp => LidarMethod::Icp,
+        Method::Rbpf => LidarMethod::Rbpf,
+    };
+    let in_saved_map = args.localize.is_some() || args.continue_map.is_some();
+    let mut config = LidarSlamConfig::from_files(
+        method,
+        in_saved_map,
         args.profile.as_deref(),
-        None,
+        args.config.as_deref(),
     )?;
-    if args.localize.is_some() || args.continue_map.is_some() {
-        return with_file(config, args.config.as_deref());
-    }
-    match args.method {
-        Method::Rbpf => {
-            config.method = LidarMethod::Rbpf;
-            config.rbpf = with_file(config.rbpf, args.config.as_deref())?;
-            config.rbpf.particles = args.particles;
-            if let Some(seed) = args.seed {
-                config.rbpf.seed = seed;
-            }
+    if !in_saved_map && method == LidarMethod::Rbpf {
+        config.rbpf.particles = args.particles;
+        if let Some(seed) = args.seed {
+            config.rbpf.seed = seed;
         }
-        _ => config.icp = with_file(config.icp, args.config.as_deref())?,
     }
     Ok(config)
 }
@@ -270,12 +265,12 @@ pub(crate) fn load_config<C: Serialize + DeserializeOwned + Default>(
     args: &LidarArgs,
     section: &str,
 ) -> anyhow::Result<C> {
-    settings(
+    Ok(settings(
         C::default(),
         section,
         args.profile.as_deref(),
         args.config.as_deref(),
-    )
+    )?)
 }
 
 /// The relations metric of `trajectory` for report.json; when scoring fails, the error in

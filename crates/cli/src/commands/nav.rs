@@ -14,7 +14,6 @@
 
 use crate::commands::plan::parse_xy;
 use crate::output::{finish, peak_rss_bytes, timings_json, Unsuccessful};
-use crate::settings::settings;
 use anyhow::Context;
 use nalgebra::Point2;
 use serde_json::json;
@@ -24,6 +23,7 @@ use slamkit_io::output_folder::OutputFolder;
 use slamkit_io::write_tum;
 use slamkit_sim::World;
 use slamkit_slam::ground_robot::closed_loop::{run_nav_loop, FrameRecord, NavLoopConfig};
+use slamkit_slam::profile::settings;
 use slamkit_vo::FrameStatus;
 use std::path::{Path, PathBuf};
 use std::time::Instant;

@@ -13,13 +13,13 @@
 //! for byte.
 
 use crate::output::{finish, peak_rss_bytes, timings_json};
-use crate::settings::settings;
 use anyhow::Context;
 use serde_json::json;
 use slamkit_core::StageTimings;
 use slamkit_io::output_folder::OutputFolder;
 use slamkit_sim::recording::{write_recording, Sensor, KITTI_FOLDER, TUM_FOLDER};
 use slamkit_sim::{RobotKind, SimConfig, Simulation, World};
+use slamkit_slam::profile::settings;
 use std::path::PathBuf;
 use std::time::Instant;
 

@@ -4,7 +4,6 @@
 //! `.skmap` file.
 
 use crate::output::{finish, peak_rss_bytes, progress_bar, timings_json};
-use crate::settings::settings;
 use anyhow::Context;
 use serde_json::json;
 use slamkit_io::output_folder::OutputFolder;
@@ -220,21 +219,17 @@ fn detect_format(dir: &Path) -> anyhow::Result<IoFormat> {
     detected.with_context(|| format!("cannot tell the layout of {}: pass --format", dir.display()))
 }
 
-/// The front end's defaults, the profile's `[vo]` settings (the named one, or the layout's
-/// camera) over them, and the `--config` file's fields on top.
+/// The session's settings ([`visual::session_settings`]) for the chosen front end.
 fn load_config(args: &VoArgs, format: IoFormat) -> anyhow::Result<VoConfig> {
-    let base = VoConfig {
-        frontend: match args.frontend {
-            Frontend::Klt => FrontendKind::Klt,
-            Frontend::Orb => FrontendKind::Orb,
-        },
-        ..VoConfig::default()
+    let frontend = match args.frontend {
+        Frontend::Klt => FrontendKind::Klt,
+        Frontend::Orb => FrontendKind::Orb,
     };
-    let profile = args.profile.as_deref().or_else(|| layout_profile(format));
-    let mut config = settings(base, "vo", profile, args.config.as_deref())?;
-    config.loop_closure.enabled |= args.slam;
-    config.validate().context("checking the settings")?;
-    Ok(config)
+    let profile = args.profile.as_deref();
+    let config = args.config.as_deref();
+    Ok(visual::session_settings(
+        frontend, format, profile, config, args.slam,
+    )?)
 }
 
 fn print_summary(out: &Path, report: &serde_json::Value) {

@@ -1,0 +1,58 @@
+//! slamkit for Python: the module `slamkit`, built by maturin into an abi3 wheel.
+//!
+//! A thin layer over the libraries, so that a Python program gets what the CLI gets:
+//!
+//! * [`lidar`]: `read_carmen` and `LidarSlam` (ICP-SLAM or the particle filter; a new map,
+//!   localisation in a saved one, or its continuation).
+//! * [`visual`]: `Dataset` (the RGB-D and stereo folder readers) and `VisualSlam`.
+//! * [`maps`]: `Map`, a `.skmap` file: its description, its planning grid as a numpy array,
+//!   its export.
+//! * [`metrics`]: `read_trajectory`, `read_relations`, `ate`, `rpe`, `relations_error`.
+//! * [`convert`]: trajectories as `(N, 8)` TUM arrays, results as plain Python objects.
+//!
+//! Heavy work (a whole log, a dataset, a metric over millions of poses) runs with the GIL
+//! released. Every error is a `slamkit.SlamkitError` whose message is the CLI's one line.
+//! The stubs in `slamkit.pyi` document the Python API.
+
+use pyo3::prelude::*;
+
+pub mod convert;
+pub mod lidar;
+pub mod maps;
+pub mod metrics;
+pub mod visual;
+
+pyo3::create_exception!(
+    slamkit,
+    SlamkitError,
+    pyo3::exceptions::PyException,
+    "An error of slamkit: a file that cannot be read, bad settings, a failed run."
+);
+
+/// A [`SlamkitError`] carrying `err` and its causes on one line (`outer: cause: root`), as the
+/// CLI prints them.
+pub fn to_py_err(err: impl std::error::Error) -> PyErr {
+    let mut message = err.to_string();
+    let mut source = err.source();
+    while let Some(cause) = source {
+        let text = cause.to_string();
+        // Errors that already quote their cause are not repeated.
+        if !message.contains(&text) {
+            message = format!("{message}: {text}");
+        }
+        source = cause.source();
+    }
+    SlamkitError::new_err(message)
+}
+
+/// The Python module.
+#[pymodule]
+fn slamkit(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("SlamkitError", m.py().get_type::<SlamkitError>())?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    lidar::register(m)?;
+    visual::register(m)?;
+    maps::register(m)?;
+    metrics::register(m)?;
+    Ok(())
+}

@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# Builds slamkit's Python wheel (crates/py, abi3: one wheel for CPython >= 3.9), installs it
+# into a fresh virtualenv with the test tools, and runs the Python tests (crates/py/tests) and
+# the example. `.ci/run` runs this; run it by hand the same way:
+#
+#     SLAMKIT_DATA=../shared/data scripts/python_tests.sh
+#
+# Versions are pinned so a run today and a run next month test the same thing.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+venv=target/py-venv
+wheels=target/wheels
+python="${PYTHON:-python3}"
+
+rm -rf "$venv" "$wheels"
+"$python" -m venv "$venv"
+"$venv/bin/pip" install --quiet --disable-pip-version-check \
+    maturin==1.16.0 pytest==9.2.0 numpy==2.4.6 evo==1.38.1
+
+# The release profile, as the CLI the tests compare with is built.
+"$venv/bin/maturin" build --quiet --release --manifest-path crates/py/Cargo.toml --out "$wheels"
+"$venv/bin/pip" install --quiet --disable-pip-version-check --no-index "$wheels"/slamkit-*.whl
+
+# From the repository's root, so `import slamkit` finds the installed wheel, not a folder.
+"$venv/bin/python" -c "import slamkit; print('slamkit', slamkit.__version__, 'from', slamkit.__file__)"
+cargo build --release --quiet -p slamkit
+SLAMKIT_BIN="$PWD/target/release/slamkit" "$venv/bin/python" -m pytest -q crates/py/tests
