@@ -59,6 +59,22 @@ pub fn array_to_trajectory(array: &PyReadonlyArray2<'_, f64>, what: &str) -> PyR
     Ok(trajectory)
 }
 
+/// The value `choices` pairs with `name`, or an error naming the argument `what` and the
+/// names it takes.
+///
+/// # Errors
+/// [`SlamkitError`] for a name not among `choices`.
+pub fn one_of<T: Copy>(what: &str, name: &str, choices: &[(&str, T)]) -> PyResult<T> {
+    if let Some((_, value)) = choices.iter().find(|(n, _)| *n == name) {
+        return Ok(*value);
+    }
+    let names: Vec<String> = choices.iter().map(|(n, _)| format!("{n:?}")).collect();
+    Err(SlamkitError::new_err(format!(
+        "{what} must be {}, got {name:?}",
+        names.join(" or ")
+    )))
+}
+
 /// `value` as the Python object its JSON gives (dicts, lists, floats, ints, strings, None).
 ///
 /// # Errors

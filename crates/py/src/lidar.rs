@@ -2,9 +2,9 @@
 //! (ICP-SLAM or the particle filter), localises in a saved one or continues it, scan by scan
 //! (`push_scan`) or over a whole log (`run`, the GIL released).
 
-use crate::convert::{to_python, trajectory_to_array};
+use crate::convert::{one_of, to_python, trajectory_to_array};
 use crate::maps::Grid;
-use crate::{to_py_err, SlamkitError};
+use crate::to_py_err;
 use nalgebra::{Isometry2, Vector2};
 use numpy::{PyArray1, PyArray2, PyReadonlyArray1};
 use pyo3::prelude::*;
@@ -164,15 +164,8 @@ impl PyLidarSlam {
         profile: Option<&str>,
         config: Option<PathBuf>,
     ) -> PyResult<Self> {
-        let method = match method {
-            "icp" => LidarMethod::Icp,
-            "rbpf" => LidarMethod::Rbpf,
-            other => {
-                return Err(SlamkitError::new_err(format!(
-                    "method must be \"icp\" or \"rbpf\", got {other:?}"
-                )))
-            }
-        };
+        let methods = [("icp", LidarMethod::Icp), ("rbpf", LidarMethod::Rbpf)];
+        let method = one_of("method", method, &methods)?;
         let mut settings = LidarSlamConfig::from_files(method, false, profile, config.as_deref())
             .map_err(to_py_err)?;
         if let Some(particles) = particles {

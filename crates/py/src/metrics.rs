@@ -2,7 +2,7 @@
 //! and `relations_error`, computed as `slamkit eval` computes them (ATE and RPE as evo's
 //! `evo_ape` / `evo_rpe`, translation part; the relations metric of Kümmerle et al. 2009).
 
-use crate::convert::{array_to_trajectory, to_python, trajectory_to_array};
+use crate::convert::{array_to_trajectory, one_of, to_python, trajectory_to_array};
 use crate::{to_py_err, SlamkitError};
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray2};
@@ -130,15 +130,8 @@ fn rpe<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let (reference, estimate) = two_trajectories(&reference, &estimate)?;
     let pairing = self::pairing(pairing, max_diff)?;
-    let unit = match unit {
-        "frames" => DeltaUnit::Frames,
-        "m" => DeltaUnit::Metres,
-        other => {
-            return Err(SlamkitError::new_err(format!(
-                "unit must be \"frames\" or \"m\", got {other:?}"
-            )))
-        }
-    };
+    let units = [("frames", DeltaUnit::Frames), ("m", DeltaUnit::Metres)];
+    let unit = one_of("unit", unit, &units)?;
     let config = RpeConfig {
         delta,
         unit,

@@ -2,7 +2,7 @@
 //! and a `VisualSlam` session runs over it as `slamkit vo` does (visual odometry, with
 //! `slam=True` keyframes, place recognition and loop closure).
 
-use crate::convert::{to_python, trajectory_to_array};
+use crate::convert::{one_of, to_python, trajectory_to_array};
 use crate::{to_py_err, SlamkitError};
 use numpy::PyArray2;
 use pyo3::prelude::*;
@@ -94,15 +94,8 @@ impl VisualSlam {
         config: Option<PathBuf>,
         slam: bool,
     ) -> PyResult<Self> {
-        let frontend = match frontend {
-            "klt" => FrontendKind::Klt,
-            "orb" => FrontendKind::Orb,
-            other => {
-                return Err(SlamkitError::new_err(format!(
-                    "frontend must be \"klt\" or \"orb\", got {other:?}"
-                )))
-            }
-        };
+        let frontends = [("klt", FrontendKind::Klt), ("orb", FrontendKind::Orb)];
+        let frontend = one_of("frontend", frontend, &frontends)?;
         let settings =
             visual::session_settings(frontend, dataset.format, profile, config.as_deref(), slam)
                 .map_err(to_py_err)?;
