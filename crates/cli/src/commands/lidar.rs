@@ -55,7 +55,9 @@ pub struct LidarArgs {
     /// Particles of the particle filter.
     #[arg(long, default_value_t = 30)]
     pub particles: usize,
-    /// Seed of the particle filter's random draws (default: the filter's configured seed, 1).
+    /// Seed of every random choice of the run: the particle filter's draws and resampling,
+    /// Monte Carlo localisation's (`--localize MAP.yaml`), the drone's particle filter
+    /// (default: the configured seed, 1; ICP-SLAM and the global search draw nothing).
     #[arg(long)]
     pub seed: Option<u64>,
     /// Localise in this saved map instead of building one: a `.skmap` (the start pose is found
@@ -228,18 +230,19 @@ fn session_config(args: &LidarArgs) -> anyhow::Result<LidarSlamConfig> {
         None,
     )?;
     if args.localize.is_some() || args.continue_map.is_some() {
-        return with_file(config, args.config.as_deref());
-    }
-    match args.method {
-        Method::Rbpf => {
-            config.method = LidarMethod::Rbpf;
-            config.rbpf = with_file(config.rbpf, args.config.as_deref())?;
-            config.rbpf.particles = args.particles;
-            if let Some(seed) = args.seed {
-                config.rbpf.seed = seed;
+        config = with_file(config, args.config.as_deref())?;
+    } else {
+        match args.method {
+            Method::Rbpf => {
+                config.method = LidarMethod::Rbpf;
+                config.rbpf = with_file(config.rbpf, args.config.as_deref())?;
+                config.rbpf.particles = args.particles;
             }
+            _ => config.icp = with_file(config.icp, args.config.as_deref())?,
         }
-        _ => config.icp = with_file(config.icp, args.config.as_deref())?,
+    }
+    if let Some(seed) = args.seed {
+        config.rbpf.seed = seed;
     }
     Ok(config)
 }
