@@ -55,7 +55,9 @@ pub struct LidarArgs {
     /// Particles of the particle filter.
     #[arg(long, default_value_t = 30)]
     pub particles: usize,
-    /// Seed of the particle filter's random draws (default: the filter's configured seed, 1).
+    /// Seed of every random choice of the run: the particle filter's draws and resampling,
+    /// Monte Carlo localisation's (`--localize MAP.yaml`), the drone's particle filter
+    /// (default: the configured seed, 1; ICP-SLAM and the global search draw nothing).
     #[arg(long)]
     pub seed: Option<u64>,
     /// Localise in this saved map instead of building one: a `.skmap` (the start pose is found
@@ -232,9 +234,9 @@ fn session_config(args: &LidarArgs) -> anyhow::Result<LidarSlamConfig> {
     )?;
     if !in_saved_map && method == LidarMethod::Rbpf {
         config.rbpf.particles = args.particles;
-        if let Some(seed) = args.seed {
-            config.rbpf.seed = seed;
-        }
+    }
+    if let Some(seed) = args.seed {
+        config.rbpf.seed = seed;
     }
     Ok(config)
 }

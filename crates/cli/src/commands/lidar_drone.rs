@@ -3,8 +3,9 @@
 //! merged in time order with the range finders, attitude and optical flow of the CSV files
 //! ([`slamkit_io::drone_csv`] documents their columns). `--method rbpf` also runs the particle
 //! filter on the layered increments (`--particles`, seeded by `--seed`; a `[particle_filter]`
-//! table in `--config` replaces both). `--localize MAP.skmap` localises in a drone's saved map
-//! (not changing it), `--continue MAP.skmap` extends it; the drone is found in the map by a
+//! table in `--config` replaces the particle count, and `--seed` still sets its seed).
+//! `--localize MAP.skmap` localises in a drone's saved map (not changing it), `--continue
+//! MAP.skmap` extends it; the drone is found in the map by a
 //! global search ([`slamkit_slam::drone::in_map`]). Writes `trajectory.tum`,
 //! `maps/layer_NNN.{pgm,yaml,png}`, `map.{pgm,yaml,png}`, `cloud.ply`, `report.json`, with
 //! `--method rbpf` `trajectory_pf.tum` and `map_pf.*`, and with `--save-map` the `.skmap`.
@@ -40,6 +41,9 @@ pub fn run(args: &LidarArgs, ranges: &Path) -> anyhow::Result<()> {
             particles: args.particles,
             ..drone_pf_config(args.seed.unwrap_or(RbpfConfig::default().seed))
         });
+    }
+    if let (Some(pf), Some(seed)) = (config.particle_filter.as_mut(), args.seed) {
+        pf.seed = seed;
     }
     let folder = OutputFolder::create(&args.out, OUTPUTS)?;
     let out = folder.path();

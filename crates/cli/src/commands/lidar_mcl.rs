@@ -20,7 +20,10 @@ use std::time::Instant;
 /// Runs Monte Carlo localisation in the map `--localize` names.
 pub fn run_localization(args: &LidarArgs, map_path: &Path) -> anyhow::Result<()> {
     let started = Instant::now();
-    let config = load_config::<MclConfig>(args, "mcl")?;
+    let mut config = load_config::<MclConfig>(args, "mcl")?;
+    if let Some(seed) = args.seed {
+        config.seed = seed;
+    }
     let map = load_map_yaml(map_path)
         .with_context(|| format!("loading the map {}", map_path.display()))?;
     let folder = OutputFolder::create(&args.out, OUTPUTS)?;
