@@ -46,10 +46,10 @@ pub struct PcmConfig {
 impl Default for PcmConfig {
     fn default() -> Self {
         Self {
-            tolerance_m: 0.2,
-            drift_per_m: 0.01,
-            tolerance_rad: 2f64.to_radians(),
-            drift_rad_per_m: 0.1f64.to_radians(),
+            tolerance_m: 0.3,
+            drift_per_m: 0.02,
+            tolerance_rad: 3f64.to_radians(),
+            drift_rad_per_m: 0.2f64.to_radians(),
             min_consistent: 3,
             ambiguity_ratio: 0.5,
         }
