@@ -43,7 +43,7 @@ use slamkit_lidar::point_map::Keyframe;
 use std::time::Instant;
 
 /// Settings of a merge.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct MergeConfig {
     /// How keyframe scans become points with normals (ranges, normals), as in mapping.
@@ -58,19 +58,6 @@ pub struct MergeConfig {
     pub pcm: pcm::PcmConfig,
     /// The joint pose graph.
     pub joint: joint::JointConfig,
-}
-
-impl Default for MergeConfig {
-    fn default() -> Self {
-        Self {
-            icp: IcpSlamConfig::default(),
-            global_search: GlobalSearchConfig::default(),
-            places: places::PlacesConfig::default(),
-            verify: verify::VerifyConfig::default(),
-            pcm: pcm::PcmConfig::default(),
-            joint: joint::JointConfig::default(),
-        }
-    }
 }
 
 impl MergeConfig {

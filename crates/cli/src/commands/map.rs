@@ -115,7 +115,7 @@ fn merge(files: &[PathBuf], out: &Path) -> anyhow::Result<()> {
     let start = std::time::Instant::now();
     let mut maps = Vec::with_capacity(files.len());
     for file in files {
-        let (map, _) = LidarMap::load(file).with_context(|| format!("input {}", file.display()))?;
+        let (map, _) = LidarMap::load(file)?;
         maps.push(map);
     }
     let names = robot_names(files);

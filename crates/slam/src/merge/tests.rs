@@ -246,12 +246,13 @@ fn max_clique_matches_brute_force_on_random_graphs() {
         let n = rng.gen_range(1..13);
         let density = rng.gen_range(0.1..0.9);
         let mut adj = vec![vec![false; n]; n];
-        for i in 0..n {
-            for j in i + 1..n {
-                let e = rng.gen_bool(density);
-                adj[i][j] = e;
-                adj[j][i] = e;
-            }
+        let pairs: Vec<(usize, usize)> = (0..n)
+            .flat_map(|i| (i + 1..n).map(move |j| (i, j)))
+            .collect();
+        for (i, j) in pairs {
+            let e = rng.gen_bool(density);
+            adj[i][j] = e;
+            adj[j][i] = e;
         }
         let weights: Vec<f64> = (0..n).map(|_| rng.gen_range(0.0..1.0)).collect();
         let mut best = (0usize, f64::NEG_INFINITY);
