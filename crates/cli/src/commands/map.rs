@@ -38,7 +38,7 @@ enum MapCommand {
     },
     /// Merge 2D lidar maps whose relative poses are unknown (several robots, or one robot on
     /// several days) into one: writes map.skmap, its exports (map.pgm/.yaml/.png, cloud.ply,
-    /// trajectory.tum), trajectory_<name>.tum per merged input in the merged frame, and
+    /// trajectory.tum), trajectory_NAME.tum per merged input in the merged frame, and
     /// report.json with the closures found, accepted and rejected and the inputs left out.
     Merge {
         /// The `.skmap` files (two or more); each is named by its file stem.
