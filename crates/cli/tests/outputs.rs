@@ -172,12 +172,13 @@ fn a_path_within_one_cell_is_zero_metres_and_said_so() {
 
 #[test]
 fn help_names_fields_not_rust_types() {
-    let commands: [&[&str]; 11] = [
+    let commands: [&[&str]; 12] = [
         &["demo"],
         &["vo"],
         &["lidar"],
         &["map", "info"],
         &["map", "export"],
+        &["map", "merge"],
         &["eval", "ate"],
         &["eval", "rpe"],
         &["eval", "relations"],
@@ -240,4 +241,29 @@ fn vo_on_a_tiny_path_gives_the_end_point_error_not_a_percentage() {
         "{stdout}"
     );
     assert!(!stdout.contains("% of"), "{stdout}");
+}
+
+#[test]
+fn map_merge_refuses_a_file_that_is_not_a_map_in_one_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("robot2.skmap");
+    std::fs::write(&bad, "not a map").unwrap();
+    let run = slamkit(&[
+        "map",
+        "merge",
+        bad.to_str().unwrap(),
+        bad.to_str().unwrap(),
+        "--out",
+        dir.path().join("out").to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("robot2.skmap") && stderr.contains("not a slamkit map"),
+        "{stderr}"
+    );
+    assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
+    // one map is not a merge
+    let run = slamkit(&["map", "merge", bad.to_str().unwrap(), "--out", "x"]);
+    assert_eq!(run.status.code(), Some(2));
 }

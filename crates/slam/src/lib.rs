@@ -23,6 +23,8 @@
 //! * [`visual`]: [`VisualSlam`], visual odometry of an RGB-D or stereo camera as a session, and
 //!   [`visual::run`], which overlaps decoding and frame preparation with tracking;
 //!   `visual::simulated` runs it on a simulated camera and scores it.
+//! * [`merge`]: offline merging of 2D lidar maps whose relative poses are unknown (place
+//!   recognition, verification, pairwise consistency, joint pose-graph optimisation).
 //! * [`ground_robot`]: [`GroundRobotNav`], a ground robot's camera session, floor grid, planner
 //!   and path tracker; its closed loop in the simulator.
 //!
@@ -34,6 +36,7 @@ mod error;
 pub mod ground_robot;
 pub mod lidar;
 pub mod map_file;
+pub mod merge;
 pub mod odometry_gate;
 pub mod profile;
 pub mod session;

@@ -1,10 +1,12 @@
-//! `slamkit map info|export`: what a `.skmap` file holds, and its contents as files any tool
-//! opens.
+//! `slamkit map info|export|merge`: what a `.skmap` file holds, its contents as files any tool
+//! opens, and several robots' 2D lidar maps merged into one.
 
 use anyhow::Context;
 use slamkit_io::output_folder::OutputFolder;
+use slamkit_slam::lidar::LidarMap;
 use slamkit_slam::map_file::info::MapInfo;
 use slamkit_slam::map_file::MapFile;
+use slamkit_slam::merge::{merge_maps, MergeConfig};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `slamkit map`.
@@ -34,6 +36,18 @@ enum MapCommand {
         #[arg(long)]
         out: PathBuf,
     },
+    /// Merge 2D lidar maps whose relative poses are unknown (several robots, or one robot on
+    /// several days) into one: writes map.skmap, its exports (map.pgm/.yaml/.png, cloud.ply,
+    /// trajectory.tum), trajectory_NAME.tum per merged input in the merged frame, and
+    /// report.json with the closures found, accepted and rejected and the inputs left out.
+    Merge {
+        /// The `.skmap` files (two or more); each is named by its file stem.
+        #[arg(required = true, num_args = 2..)]
+        files: Vec<PathBuf>,
+        /// Output folder.
+        #[arg(long)]
+        out: PathBuf,
+    },
 }
 
 /// Runs `slamkit map`.
@@ -41,6 +55,7 @@ pub fn run(args: &MapArgs) -> anyhow::Result<()> {
     match &args.command {
         MapCommand::Info { file, json } => info(file, *json),
         MapCommand::Export { file, out } => export(file, out),
+        MapCommand::Merge { files, out } => merge(files, out),
     }
 }
 
@@ -94,4 +109,83 @@ fn export(file: &Path, out: &Path) -> anyhow::Result<()> {
         out.display()
     );
     Ok(())
+}
+
+fn merge(files: &[PathBuf], out: &Path) -> anyhow::Result<()> {
+    let start = std::time::Instant::now();
+    let mut maps = Vec::with_capacity(files.len());
+    for file in files {
+        let (map, _) = LidarMap::load(file)?;
+        maps.push(map);
+    }
+    let names = robot_names(files);
+    let config = MergeConfig::default();
+    let outcome = merge_maps(&maps, &config)?;
+    let files_written = &[
+        "map.skmap",
+        "map.pgm",
+        "map.yaml",
+        "map.png",
+        "cloud.ply",
+        "trajectory.tum",
+        "report.json",
+    ];
+    let folder = OutputFolder::create(out, files_written)?;
+    let notes = serde_json::json!({ "method": "map merge", "inputs": names });
+    let merged = outcome.map.to_new_file(notes)?;
+    let merged_path = folder.path().join("map.skmap");
+    merged.save(&merged_path)?;
+    slamkit_slam::map_file::export::export(&merged, &merged_path, folder.path())?;
+    for (name, input) in names.iter().zip(&outcome.inputs) {
+        if let Some(trajectory) = &input.trajectory {
+            let path = folder.path().join(format!("trajectory_{name}.tum"));
+            slamkit_io::trajectory_file::write_tum(&path, trajectory)?;
+        }
+    }
+    let keyframe_times: Vec<Vec<f64>> = maps
+        .iter()
+        .map(|m| m.keyframes.iter().map(|k| k.scan.timestamp).collect())
+        .collect();
+    let mut report = outcome.report(&names, &keyframe_times);
+    report["input"] = serde_json::json!(files);
+    report["config"] = serde_json::to_value(&config)?;
+    report["wall_seconds"] = serde_json::json!(start.elapsed().as_secs_f64());
+    report["timings_ms"] = crate::output::timings_json(&outcome.timings);
+    report["peak_rss_bytes"] = serde_json::json!(crate::output::peak_rss_bytes());
+    crate::output::finish(folder, &report)?;
+    let unmerged = outcome.unmerged();
+    println!(
+        "{} of {} maps merged ({} closures found, {} accepted){} in {}",
+        outcome.stats.merged_inputs,
+        files.len(),
+        outcome.closures.len(),
+        outcome.stats.accepted,
+        if unmerged.is_empty() {
+            String::new()
+        } else {
+            let left: Vec<&str> = unmerged.iter().map(|&i| names[i].as_str()).collect();
+            format!("; left out: {}", left.join(", "))
+        },
+        out.display()
+    );
+    Ok(())
+}
+
+/// Each input's name: its file stem, with `_2`, `_3`, ... added when stems repeat.
+fn robot_names(files: &[PathBuf]) -> Vec<String> {
+    let mut names: Vec<String> = Vec::with_capacity(files.len());
+    for (i, file) in files.iter().enumerate() {
+        let stem = file.file_stem().map_or_else(
+            || format!("input{}", i + 1),
+            |s| s.to_string_lossy().into_owned(),
+        );
+        let mut name = stem.clone();
+        let mut n = 1;
+        while names.contains(&name) {
+            n += 1;
+            name = format!("{stem}_{n}");
+        }
+        names.push(name);
+    }
+    names
 }
