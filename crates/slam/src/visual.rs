@@ -212,7 +212,7 @@ impl VisualSlam {
 
     /// A session localising in the saved `map` (`slamkit vo --localize`): no pose until a
     /// frame is found among the map's keyframes, then odometry, and the map searched again
-    /// whenever tracking is lost ([`in_map`]); poses are in the map's frame, and the map is
+    /// whenever tracking is lost; poses are in the map's frame, and the map is
     /// not changed (no loop closure, no keyframes added to it).
     ///
     /// # Errors
