@@ -15,6 +15,14 @@
 //! what was closed. The world point map and the map file's keyframes keep the poses they were
 //! given when tracked.
 //!
+//! With loop closure on, a session that lost tracking (`max_consecutive_failures` failed
+//! frames in a row: dark, blurred or textureless frames, a kidnapped camera) relocalises: each
+//! new frame is looked for among the keyframes (place index, then RANSAC + Horn verification,
+//! `slamkit_vo::relocalisation`), and tracking resumes where it is found, in the same map
+//! frame. Until then the frames are [`TrackingStatus::Lost`] with no pose (nothing is
+//! invented); after `loop_closure.relocalisation.restart_after_s` without a match (a place the
+//! map lacks), tracking starts again at the last pose, as plain odometry does at once.
+//!
 //! Poses are `world_from_camera` of the rig's reference camera: the depth camera of an RGB-D
 //! rig (the dataset's camera; the tracked colour camera is moved onto it when depth is
 //! registered to colour by the session), the left camera of a stereo rig. The world is wherever
@@ -25,6 +33,7 @@
 //! metres), [`VoConfig::frontend`] and, for a colour camera whose depth is not registered to it,
 //! [`VoConfig::register_depth`]; the rest of [`VoConfig`] is advanced.
 
+mod in_map;
 pub mod keyframes;
 mod loop_closing;
 pub mod pipeline;
@@ -33,7 +42,7 @@ mod prepare;
 pub mod simulated;
 
 pub use keyframes::{Keyframe, VisualMap};
-pub use loop_closing::{check_closures, LoopClosure, LoopStats};
+pub use loop_closing::{check_closures, LoopClosure, LoopStats, RelocalisationStats};
 pub use pipeline::{run, FrameRecord, RunOptions, RunStats, VisualRun};
 pub use point_map::PointMapping;
 pub use prepare::{FramePreparer, PreparedObservation};
@@ -42,14 +51,17 @@ use cpu_time::ThreadTime;
 use slamkit_core::{Observation, Pose3, StageTimings, Trajectory};
 use slamkit_io::{Dataset, DatasetFormat};
 use slamkit_vo::frame::Rig;
-use slamkit_vo::{FrameStatus, FrontendKind, Odometry, TrackingMode, VoConfig, VoxelMap};
+use slamkit_vo::{
+    FailReason, FrameStatus, FrontendKind, Odometry, TrackingMode, VoConfig, VoxelMap,
+};
 use std::path::Path;
 
 use crate::map_file;
 use crate::profile::layout_profile;
 use crate::session::{MapChange, Session, TrackingStatus, Update};
 use crate::SlamError;
-use loop_closing::LoopClosing;
+use in_map::MapLocaliser;
+use loop_closing::{Joined, LoopClosing};
 use point_map::PointMapper;
 use prepare::Prepared;
 
@@ -96,12 +108,16 @@ pub struct VisualSlam {
     stats: VisualStats,
     /// Failed frames since the last tracked or initialised one.
     failures_in_row: usize,
+    /// Time of the frame tracking was lost at, while it is.
+    lost_since: Option<f64>,
     /// Index of the next frame [`Self::push`] prepares (one past the last tracked).
     next_index: usize,
     /// The keyframes for the map file.
     map: VisualMap,
     /// Place recognition and loop closure (`loop_closure.enabled`).
     loops: Option<LoopClosing>,
+    /// The saved map the session localises in ([`Self::localising_in`]).
+    in_map: Option<MapLocaliser>,
 }
 
 /// Frame counters of a [`VisualSlam`] session.
@@ -113,8 +129,13 @@ pub struct VisualStats {
     pub processed: usize,
     /// Frames that could not be tracked (too dark, no depth, no motion found).
     pub failed: usize,
-    /// Tracking (re)starts.
+    /// Tracking (re)starts, relocalisations included.
     pub initialisations: usize,
+    /// Tracking resumed where the frame was found in the map after tracking was lost
+    /// (with loop closure on).
+    pub relocalisations: usize,
+    /// Frames while tracking was lost, reported without a pose (part of `failed`).
+    pub lost: usize,
     /// Observations the session does not use (other sensors, another kind of camera).
     pub ignored: usize,
     /// Tracked frames left out of the point map because its thread was busy
@@ -180,6 +201,7 @@ impl VisualSlam {
             timings: StageTimings::default(),
             stats: VisualStats::default(),
             failures_in_row: 0,
+            lost_since: None,
             next_index: 0,
             map: VisualMap::default(),
             loops: config
@@ -187,7 +209,29 @@ impl VisualSlam {
                 .enabled
                 .then(|| LoopClosing::new(&config.loop_closure))
                 .transpose()?,
+            in_map: None,
         })
+    }
+
+    /// A session localising in the saved `map` (`slamkit vo --localize`): no pose until a
+    /// frame is found among the map's keyframes, then odometry, and the map searched again
+    /// whenever tracking is lost; poses are in the map's frame, and the map is
+    /// not changed (no loop closure, no keyframes added to it).
+    ///
+    /// # Errors
+    /// As [`Self::new`]; [`SlamError::Map`] for a map without ORB descriptors.
+    pub fn localising_in(config: &VoConfig, rig: Rig, map: &VisualMap) -> Result<Self, SlamError> {
+        let mut config = config.clone();
+        // frames are prepared with their place features (ORB with depth), as for loop closure
+        config.loop_closure.enabled = true;
+        let mut session = Self::new(&config, rig)?;
+        session.loops = None;
+        session.in_map = Some(MapLocaliser::new(
+            &config,
+            map,
+            &session.tracked_from_camera,
+        )?);
+        Ok(session)
     }
 
     /// The same session building its point map the way `mode` says.
@@ -238,16 +282,37 @@ impl VisualSlam {
         self.stats.frames += 1;
         let start = ThreadTime::now();
         let keyframes_before = self.odometry.keyframes();
+        let searching = self.searching(timestamp);
+        let mut joined = Joined::Tracked;
+        let mut relocalised = false;
         let (status, points, place) = match frame {
             Ok(mut frame) => {
                 let points = std::mem::take(&mut frame.map_source);
                 let place = frame.place.take();
-                let status = self.odometry.track(frame);
+                let found = place
+                    .as_ref()
+                    .filter(|_| searching)
+                    .and_then(|p| self.locate(p));
+                let status = match found {
+                    Some((found, world_from_tracked)) => {
+                        let status = self.odometry.restart_at(frame, world_from_tracked);
+                        relocalised = !matches!(status, FrameStatus::Failed(_));
+                        if let Some(found) = found.filter(|_| relocalised) {
+                            joined = Joined::Relocalised(found);
+                        }
+                        status
+                    }
+                    None if searching => self.odometry.skip(FailReason::NotRelocalised),
+                    None => self.odometry.track(frame),
+                };
                 (status, points, place)
             }
             Err(reason) => (self.odometry.skip(reason), Default::default(), None),
         };
-        let closed = self.close_loops(timestamp, &status, place);
+        if matches!(status, FrameStatus::Initialised { .. }) && joined == Joined::Tracked {
+            joined = Joined::Restarted;
+        }
+        let closed = self.close_loops(timestamp, &status, place, joined.clone());
         let track_ms = start.elapsed().as_secs_f64() * 1e3;
         self.timings.record("prepare", prepare_ms);
         self.timings.record("track", track_ms);
@@ -260,6 +325,8 @@ impl VisualSlam {
                 if self.stats.initialisations == 0 {
                     TrackingStatus::Initialising
                 } else if self.failures_in_row >= self.config.max_consecutive_failures {
+                    self.stats.lost += 1;
+                    self.lost_since.get_or_insert(timestamp);
                     TrackingStatus::Lost
                 } else {
                     TrackingStatus::Predicted
@@ -269,8 +336,12 @@ impl VisualSlam {
                 if matches!(status, FrameStatus::Initialised { .. }) {
                     self.stats.initialisations += 1;
                 }
+                if relocalised {
+                    self.stats.relocalisations += 1;
+                }
                 self.stats.processed += 1;
                 self.failures_in_row = 0;
+                self.lost_since = None;
                 self.point_map.insert(world_from_tracked, points);
                 TrackingStatus::Tracking
             }
@@ -284,13 +355,17 @@ impl VisualSlam {
                     (self.stats.processed - 1) % self.config.local_map.keyframe_every.max(1) == 0
                 }
             };
-        if keyframe {
+        if keyframe && self.loops.is_none() {
             self.add_keyframe(timestamp, pose);
         }
         Some(VisualUpdate {
             update: Update {
                 timestamp,
-                pose: Some(pose),
+                // a lost camera's held pose would be invented, as would one in a map before
+                // the camera is found in it
+                pose: (tracking != TrackingStatus::Lost
+                    && !(self.in_map.is_some() && tracking == TrackingStatus::Initialising))
+                    .then_some(pose),
                 status: tracking,
                 map: MapChange {
                     keyframes_added: usize::from(keyframe),
@@ -303,6 +378,36 @@ impl VisualSlam {
         })
     }
 
+    /// True when the frame at `timestamp` is to be looked for in the map rather than
+    /// tracked: loop closure is on, tracking was lost, and not for longer than
+    /// `restart_after_s` (0: no limit).
+    fn searching(&self, timestamp: f64) -> bool {
+        if self.in_map.is_some() && self.stats.initialisations == 0 {
+            // in a saved map, the first pose is where the map recognises the camera
+            return true;
+        }
+        let limit = self.config.loop_closure.relocalisation.restart_after_s;
+        (self.loops.is_some() || self.in_map.is_some())
+            && self.stats.initialisations > 0
+            && self.odometry.is_lost()
+            && self
+                .lost_since
+                .map_or(true, |t| limit == 0.0 || timestamp - t < limit)
+    }
+
+    /// Where the frame with features `place` is in the map (the saved one, or this session's
+    /// keyframes), `world_from_tracked`, with the keyframe found (this session's map only).
+    fn locate(
+        &mut self,
+        place: &slamkit_vo::covisibility::PlaceFeatures,
+    ) -> Option<(Option<slamkit_vo::relocalisation::Relocalisation>, Pose3)> {
+        if let Some(map) = &self.in_map {
+            return map.locate(place).map(|pose| (None, pose));
+        }
+        let (found, pose) = self.loops.as_mut()?.relocalise(place)?;
+        Some((Some(found), pose))
+    }
+
     /// Hands a tracked frame to loop closing (when on); when a loop closed, moves the tracking
     /// state with the corrected map and says so.
     fn close_loops(
@@ -310,15 +415,15 @@ impl VisualSlam {
         timestamp: f64,
         status: &FrameStatus,
         place: Option<slamkit_vo::covisibility::PlaceFeatures>,
+        joined: Joined,
     ) -> bool {
         let Some(loops) = &mut self.loops else {
             return false;
         };
-        let restarted = matches!(status, FrameStatus::Initialised { .. });
         if matches!(status, FrameStatus::Failed(_)) {
             return false;
         }
-        match loops.add_frame(timestamp, self.odometry.pose(), place, restarted) {
+        match loops.add_frame(timestamp, self.odometry.pose(), place, joined) {
             Some(corrected_from_world) => {
                 self.odometry.correct(&corrected_from_world);
                 true
@@ -360,23 +465,14 @@ impl VisualSlam {
         });
     }
 
-    /// The keyframes so far, at their poses as loop closure left them (when on): what
-    /// [`Session::save`] writes.
+    /// The keyframes so far: what [`Session::save`] writes. With loop closure on, loop
+    /// closing's keyframes where it left them, their points with ORB descriptors (a map to
+    /// localise in); otherwise the local map's keyframes as tracked.
     pub fn map(&self) -> VisualMap {
-        let mut map = self.map.clone();
-        if let Some(corrected) = self.corrected_trajectory() {
-            let by_time: std::collections::HashMap<u64, Pose3> = corrected
-                .poses
-                .iter()
-                .map(|p| (p.timestamp.to_bits(), p.pose))
-                .collect();
-            for k in &mut map.keyframes {
-                if let Some(pose) = by_time.get(&k.timestamp.to_bits()) {
-                    k.pose = *pose;
-                }
-            }
+        match &self.loops {
+            Some(loops) => loops.visual_map(&self.tracked_from_camera),
+            None => self.map.clone(),
         }
-        map
     }
 
     /// Frame counters so far.
@@ -414,16 +510,12 @@ impl Session for VisualSlam {
 
     /// Writes the keyframes (poses, points and descriptors; [`keyframes`] lists the sections).
     fn save(&self, path: &Path) -> Result<(), SlamError> {
-        let rig = match self.rig {
-            Rig::Rgbd { .. } => map_file::Rig::Rgbd,
-            Rig::Stereo { .. } => map_file::Rig::Stereo,
-        };
         let map_error = |source| SlamError::MapFile {
             path: path.to_path_buf(),
             source,
         };
         self.map()
-            .to_map_file(rig)
+            .to_map_file(file_rig(&self.rig))
             .map_err(map_error)?
             .save(path)
             .map_err(map_error)
@@ -454,6 +546,29 @@ pub fn session_settings(
     settings.loop_closure.enabled |= slam;
     settings.validate()?;
     Ok(settings)
+}
+
+/// The map file's name for the kind of `rig`.
+fn file_rig(rig: &Rig) -> map_file::Rig {
+    match rig {
+        Rig::Rgbd { .. } => map_file::Rig::Rgbd,
+        Rig::Stereo { .. } => map_file::Rig::Stereo,
+    }
+}
+
+/// Reads the visual map saved at `path` for a camera `rig` (to localise in it,
+/// [`VisualSlam::localising_in`]).
+///
+/// # Errors
+/// [`SlamError::MapFile`] naming the file: unreadable, not a map, damaged, or the map of
+/// another rig (a stereo map for an RGB-D camera, a lidar map).
+pub fn load_map(path: &Path, rig: &Rig) -> Result<VisualMap, SlamError> {
+    let map_error = |source| SlamError::MapFile {
+        path: path.to_path_buf(),
+        source,
+    };
+    let file = map_file::MapFile::load(path).map_err(map_error)?;
+    VisualMap::from_map_file(&file, file_rig(rig)).map_err(map_error)
 }
 
 /// The camera rig of a dataset: what a [`VisualSlam`] on it is built with.

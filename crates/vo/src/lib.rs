@@ -17,6 +17,7 @@
 //! * [`covisibility`]: map points with their observations, the keyframes' covisibility graph.
 //! * [`place_index`]: the online place index over binary descriptors (HBST).
 //! * [`loop_closure`]: loop candidates, temporal consistency, geometric verification.
+//! * [`relocalisation`]: a frame without a pose found among a map's keyframes.
 //! * [`voxel_map`]: the world point map, merged per voxel, PLY export.
 //! * [`pose_graph`]: the SE(3) pose graph of loop closure, optimised by Levenberg–Marquardt
 //!   with exact SE(3) Jacobians, sparse block elimination and an optional Cauchy kernel.
@@ -38,6 +39,7 @@ pub mod odometry;
 pub mod place_index;
 pub mod pose_graph;
 pub mod registration;
+pub mod relocalisation;
 pub mod spacing;
 pub mod voxel_map;
 

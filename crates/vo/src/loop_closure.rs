@@ -14,6 +14,7 @@ use slamkit_vision::{match_descriptors, MatchConfig, OrbConfig};
 
 use crate::covisibility::PlaceFeatures;
 use crate::place_index::PlaceIndexConfig;
+use crate::relocalisation::RelocalisationConfig;
 use crate::VoError;
 
 /// Settings of keyframe selection, place recognition and loop closure (`slamkit vo --slam`).
@@ -55,6 +56,8 @@ pub struct LoopClosureConfig {
     pub odometry_sigma: (f64, f64),
     /// Scale of the Cauchy kernel of loop edges (Mahalanobis units).
     pub loop_robust_scale: f64,
+    /// Finding the camera in the map again when tracking is lost (verified as loops are).
+    pub relocalisation: RelocalisationConfig,
 }
 
 impl Default for LoopClosureConfig {
@@ -75,6 +78,7 @@ impl Default for LoopClosureConfig {
             association_tolerance: (0.03, 0.03),
             odometry_sigma: (0.01, 0.01),
             loop_robust_scale: 3.0,
+            relocalisation: RelocalisationConfig::default(),
         }
     }
 }
@@ -86,6 +90,7 @@ impl LoopClosureConfig {
     /// [`VoError::InvalidConfig`] naming the first bad field.
     pub fn validate(&self) -> Result<(), VoError> {
         self.place_index.validate()?;
+        self.relocalisation.validate()?;
         for (field, v) in [
             ("loop_closure.keyframe_distance_m", self.keyframe_distance_m),
             ("loop_closure.keyframe_angle_deg", self.keyframe_angle_deg),

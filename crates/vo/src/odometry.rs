@@ -49,6 +49,9 @@ pub enum FailReason {
     Motion(MotionFailure),
     /// An image kernel rejected its input.
     Kernel(String),
+    /// Tracking was lost and the frame was not found among the map's keyframes
+    /// ([`crate::relocalisation`]).
+    NotRelocalised,
 }
 
 /// What happened to one frame.
@@ -166,6 +169,28 @@ impl Odometry {
         self.map.transform(corrected_from_world);
     }
 
+    /// True after `max_consecutive_failures` failed frames in a row: the next frame starts
+    /// tracking again ([`Self::track`] at the last pose, or [`Self::restart_at`] where
+    /// relocalisation found it).
+    pub fn is_lost(&self) -> bool {
+        self.failures_in_row >= self.config.max_consecutive_failures
+    }
+
+    /// Starts tracking again on `frame`, placed at `world_from_camera` (where relocalisation
+    /// found it): the frame becomes the reference; the local map, in the same world, is kept.
+    /// The motion before is unknown, so the constant-velocity prediction starts from rest.
+    pub fn restart_at(&mut self, frame: PreparedFrame, world_from_camera: Pose3) -> FrameStatus {
+        let held = self.world_from_camera;
+        self.world_from_camera = world_from_camera;
+        let status = self.initialise(frame);
+        if matches!(status, FrameStatus::Failed(_)) {
+            self.world_from_camera = held;
+        } else {
+            self.velocity = Pose3::identity();
+        }
+        status
+    }
+
     /// Records a frame that failed before tracking (too dark, sizes that do not fit): the pose
     /// stays.
     pub fn skip(&mut self, reason: FailReason) -> FrameStatus {
@@ -213,7 +238,7 @@ impl Odometry {
             .iter()
             .filter_map(|&i| candidates.get(i).copied())
             .collect();
-        self.update_reference(frame, &kept);
+        self.update_reference(frame, &kept, false);
         FrameStatus::Tracked {
             inliers: estimate.inliers.len(),
             correspondences: data.len(),
@@ -234,7 +259,7 @@ impl Odometry {
         self.failures_in_row = 0;
         self.last_index = Some(frame.index);
         self.reference = None;
-        self.update_reference(frame, &[]);
+        self.update_reference(frame, &[], true);
         FrameStatus::Initialised {
             features: with_depth,
         }
@@ -418,8 +443,9 @@ impl Odometry {
     }
 
     /// Makes `frame` the reference: the inlier candidates `kept` first (keeping their
-    /// landmarks), topped up with the frame's own features; key frames enter the local map.
-    fn update_reference(&mut self, frame: PreparedFrame, kept: &[Candidate]) {
+    /// landmarks), topped up with the frame's own features; key frames (and a frame tracking
+    /// starts on, `starting`) enter the local map.
+    fn update_reference(&mut self, frame: PreparedFrame, kept: &[Candidate], starting: bool) {
         let mut features: Vec<RefFeature> = kept
             .iter()
             .map(|c| RefFeature {
@@ -435,7 +461,7 @@ impl Odometry {
             self.top_up(&frame, &mut features, kept);
         }
         if self.config.mode == TrackingMode::LocalMap {
-            self.update_map(&mut features, &frame);
+            self.update_map(&mut features, &frame, starting);
         }
         self.reference = Some(Reference {
             world_from_camera: self.world_from_camera,
@@ -521,10 +547,10 @@ impl Odometry {
 
     /// Key frames enter the map ([`LocalMap::add_keyframe`]), each observation weighted by
     /// its inverse depth variance; other frames only mark their matched landmarks as seen.
-    fn update_map(&mut self, features: &mut [RefFeature], frame: &PreparedFrame) {
+    fn update_map(&mut self, features: &mut [RefFeature], frame: &PreparedFrame, starting: bool) {
         let index = frame.index;
         let lm = &self.config.local_map;
-        if self.tracked % lm.keyframe_every != 0 {
+        if !starting && self.tracked % lm.keyframe_every != 0 {
             for f in features.iter() {
                 if let Some(id) = f.landmark {
                     self.map.touch(id, f.descriptor, index);

@@ -83,6 +83,10 @@ pub struct VoArgs {
     /// Write the map (keyframe poses, their 3D points and ORB descriptors) to this `.skmap`.
     #[arg(long)]
     pub save_map: Option<PathBuf>,
+    /// Localise in this saved map (a `.skmap` of a `--slam` run with the same kind of camera)
+    /// instead of building one: no start pose, poses in the map's frame, the map unchanged.
+    #[arg(long, conflicts_with_all = ["save_map", "slam"])]
+    pub localize: Option<PathBuf>,
     /// Output folder.
     #[arg(long, default_value = "out/vo")]
     pub out: PathBuf,
@@ -126,8 +130,14 @@ pub fn run(args: &VoArgs) -> anyhow::Result<()> {
     } else {
         PointMapping::EveryFrame
     };
-    let mut session =
-        VisualSlam::new(&config, visual::rig_of(&dataset))?.with_point_map(mapping)?;
+    let rig = visual::rig_of(&dataset);
+    let session = match &args.localize {
+        Some(path) => {
+            VisualSlam::localising_in(&config, rig.clone(), &visual::load_map(path, &rig)?)?
+        }
+        None => VisualSlam::new(&config, rig)?,
+    };
+    let mut session = session.with_point_map(mapping)?;
     let result = visual::run(&mut session, dataset.observations(), options, |_| {
         bar.inc(1)
     })?;
@@ -184,12 +194,15 @@ pub fn run(args: &VoArgs) -> anyhow::Result<()> {
             "processed": s.processed,
             "failed": s.failed,
             "initialisations": s.initialisations,
+            "relocalisations": s.relocalisations,
+            "lost": s.lost,
         },
         "map": {
             "points": map.len(),
             "dropped_points": map.dropped(),
             "keyframes": keyframes,
             "saved_to": args.save_map,
+            "localised_in": args.localize,
         },
         "wall_seconds": started.elapsed().as_secs_f64(),
         "timings_ms": timings_json(&timings),

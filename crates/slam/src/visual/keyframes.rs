@@ -2,9 +2,11 @@
 //! and the 3D points (with ORB descriptors, for the ORB front end) it tracked from, so that a
 //! later session can relocalise in the map or continue it.
 //!
-//! A keyframe is a frame that became a key frame of the local map; with frame-to-frame
-//! tracking (no local map) every `local_map.keyframe_every`-th tracked frame, the same
-//! spacing.
+//! With loop closure on (`--slam`), the keyframes are loop closing's, where it left them, and
+//! every point has its ORB descriptor (the KLT front end's keyframes too): a map to localise
+//! in (`--localize`). Otherwise a keyframe is a frame that became a key frame of the local map
+//! (with frame-to-frame tracking, no local map, every `local_map.keyframe_every`-th tracked
+//! frame, the same spacing), with the tracked features (KLT corners carry no descriptor).
 //!
 //! Sections of a visual `.skmap` (little endian, [`crate::map_file::codec`]):
 //!

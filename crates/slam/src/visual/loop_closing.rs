@@ -14,6 +14,11 @@
 //! Levenberg–Marquardt then optimises, the first keyframe fixed. The whole tracking state then
 //! moves with the newest keyframe ([`slamkit_vo::Odometry::correct`]).
 //!
+//! When tracking is lost, each new frame is looked for among the keyframes
+//! ([`LoopClosing::relocalise`], `slamkit_vo::relocalisation`); the frame it is found in
+//! becomes a keyframe joined to the one it was verified against by the measured relative pose,
+//! so the map stays one map in one frame.
+//!
 //! Poses here are `world_from_tracked` of the tracked camera (the one features are in).
 
 use nalgebra::{Matrix6, Vector6};
@@ -24,7 +29,10 @@ use slamkit_vo::loop_closure::{verify, Consistency, LoopClosureConfig, VerifiedL
 use slamkit_vo::metrics::ClosureCheck;
 use slamkit_vo::place_index::PlaceIndex;
 use slamkit_vo::pose_graph::{Edge, LmConfig, PoseGraph};
+use slamkit_vo::relocalisation::{relocalise, Relocalisation};
 use slamkit_vo::VoError;
+
+use super::keyframes::{Keyframe as MapKeyframe, VisualMap};
 
 /// Odometry between keyframes across a tracking restart is a guess (the pose held over the
 /// failed frames): its edge is this many times less certain.
@@ -59,6 +67,8 @@ pub struct LoopStats {
     pub accepted: usize,
     /// Verified candidates rejected by geometry.
     pub rejected: usize,
+    /// Looking for the camera in the map after tracking was lost.
+    pub relocalisation: RelocalisationStats,
 }
 
 /// An accepted loop between two keyframes.
@@ -75,6 +85,26 @@ pub struct LoopClosure {
     pub inliers: usize,
     /// RMS point distance of the inliers \[m\].
     pub rms_m: f64,
+}
+
+/// How a tracked frame follows the frames before it.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) enum Joined {
+    /// Tracked from the previous frame: odometry links them.
+    Tracked,
+    /// Tracking (re)started on it at the last pose: odometry is a guess.
+    Restarted,
+    /// Found in the map after tracking was lost: its pose is measured from a keyframe.
+    Relocalised(Relocalisation),
+}
+
+/// Counts of relocalisation.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct RelocalisationStats {
+    /// Frames looked for in the map while tracking was lost.
+    pub attempts: usize,
+    /// Frames found (tracking resumed in the map's frame).
+    pub found: usize,
 }
 
 #[derive(Debug)]
@@ -115,21 +145,36 @@ impl LoopClosing {
         })
     }
 
-    /// Takes a tracked frame at `world_from_tracked` with its place features; `restarted`
-    /// when tracking (re)started on it. Returns `corrected_from_world` when a loop closed and
-    /// the map moved.
+    /// Looks for a frame with features `place` among the keyframes (counted as an attempt);
+    /// where found, the keyframe and the frame's `world_from_tracked`.
+    pub(super) fn relocalise(&mut self, place: &PlaceFeatures) -> Option<(Relocalisation, Pose3)> {
+        self.stats.relocalisation.attempts += 1;
+        let found = relocalise(
+            place,
+            &self.index,
+            |i| self.keyframes.get(i).map(|k| &k.features),
+            &self.config.relocalisation,
+        )?;
+        let keyframe = self.keyframes.get(found.keyframe)?;
+        let pose = keyframe.world_from_tracked * found.verified.candidate_from_query;
+        Some((found, pose))
+    }
+
+    /// Takes a tracked frame at `world_from_tracked` with its place features, `joined` to the
+    /// frames before it as it says. Returns `corrected_from_world` when a loop closed and the
+    /// map moved.
     pub(super) fn add_frame(
         &mut self,
         timestamp: f64,
         world_from_tracked: Pose3,
         place: Option<PlaceFeatures>,
-        restarted: bool,
+        joined: Joined,
     ) -> Option<Pose3> {
         let is_keyframe = match self.keyframes.last() {
             None => true,
             Some(k) => {
                 let step = k.world_from_tracked.inverse() * world_from_tracked;
-                restarted
+                joined != Joined::Tracked
                     || step.translation.vector.norm() >= self.config.keyframe_distance_m
                     || step.rotation.angle() >= self.config.keyframe_angle_deg.to_radians()
             }
@@ -139,7 +184,7 @@ impl LoopClosing {
                 timestamp,
                 world_from_tracked,
                 place.unwrap_or_default(),
-                restarted,
+                joined,
             )
         } else {
             None
@@ -163,13 +208,30 @@ impl LoopClosing {
         timestamp: f64,
         world_from_tracked: Pose3,
         features: PlaceFeatures,
-        restarted: bool,
+        joined: Joined,
     ) -> Option<Pose3> {
         let id = self.keyframes.len();
         let mut links = Vec::new();
-        if let Some(prev) = self.keyframes.last() {
+        if let Joined::Relocalised(found) = joined {
+            // the measured pose from the keyframe it was found in; nothing from the frames
+            // before the loss
+            self.stats.relocalisation.found += 1;
+            self.edges.push(Edge {
+                from: found.keyframe,
+                to: id,
+                from_from_to: found.verified.candidate_from_query,
+                information: self.information(1.0),
+                robust_scale: None,
+            });
+            links.push((found.keyframe, found.verified.inliers));
+            self.consistency.reset();
+        } else if let Some(prev) = self.keyframes.last() {
             let prev_from_this = prev.world_from_tracked.inverse() * world_from_tracked;
-            let factor = if restarted { RESTART_SIGMA_FACTOR } else { 1.0 };
+            let factor = if joined == Joined::Restarted {
+                RESTART_SIGMA_FACTOR
+            } else {
+                1.0
+            };
             self.edges.push(Edge {
                 from: id - 1,
                 to: id,
@@ -314,6 +376,31 @@ impl LoopClosing {
         t
     }
 
+    /// The keyframes as a map file holds them, where loop closure left them: poses and
+    /// feature points of the rig's reference camera (moved there by `tracked_from_camera`),
+    /// every point with its ORB descriptor, so that a later session can recognise the places
+    /// ([`super::VisualSlam::localising_in`]).
+    pub(super) fn visual_map(&self, tracked_from_camera: &Pose3) -> VisualMap {
+        let camera_from_tracked = tracked_from_camera.inverse();
+        VisualMap {
+            keyframes: self
+                .keyframes
+                .iter()
+                .map(|k| MapKeyframe {
+                    timestamp: k.timestamp,
+                    pose: k.world_from_tracked * tracked_from_camera,
+                    points: k
+                        .features
+                        .points
+                        .iter()
+                        .zip(&k.features.descriptors)
+                        .map(|(p, d)| (camera_from_tracked * p, Some(*d)))
+                        .collect(),
+                })
+                .collect(),
+        }
+    }
+
     /// The accepted loops, their relative poses moved to the rig's reference camera.
     pub(super) fn closures(&self, tracked_from_camera: &Pose3) -> Vec<LoopClosure> {
         self.closures
@@ -420,7 +507,12 @@ mod tests {
                 drifted = drifted * step * drift;
             }
             let place = view(&mut rng, &w, &pose);
-            if let Some(correction) = loops.add_frame(f64::from(i), drifted, Some(place), i == 0) {
+            let joined = if i == 0 {
+                Joined::Restarted
+            } else {
+                Joined::Tracked
+            };
+            if let Some(correction) = loops.add_frame(f64::from(i), drifted, Some(place), joined) {
                 drifted = correction * drifted;
             }
             truth.push(pose);
