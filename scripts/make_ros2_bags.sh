@@ -2,8 +2,11 @@
 # Converts the Freiburg benchmark's ROS 1 bags ($SLAMKIT_DATA/lidar2d/{intel,aces}/
 # *.clf.orig.bag) into ROS 2 bags with an independent tool, PyPI `rosbags` (pinned below):
 # `rosbags-convert` writes each as an MCAP bag with zstd-compressed chunks (rosbag2's default
-# MCAP profile compresses chunks with zstd) and as an SQLite .db3 bag. slamkit's
-# `ros2_bags` tests (crates/cli/tests/ros2_bags.rs) read them. Nothing here is committed.
+# MCAP profile compresses chunks with zstd) and as an SQLite .db3 bag; and, as the reference
+# the ROS 2 bags are compared with, into a ROS 1 bag again (`<name>_sorted.bag`): the same
+# messages in the order rosbags writes them (by record time), which is not the order the
+# original bags store them in. slamkit's `ros2_bags` tests (crates/cli/tests/ros2_bags.rs)
+# read them. Nothing here is committed.
 #
 # Usage: scripts/make_ros2_bags.sh [OUT_DIR]      (default: target/ros2-bags)
 # Needs python3 with venv; installs rosbags into OUT_DIR/venv. Bags already converted are kept.
@@ -40,6 +43,10 @@ for name in intel aces; do
     if [ ! -f "$out/${name}_db3/metadata.yaml" ]; then
         rm -rf "$out/${name}_db3"
         "$venv/bin/rosbags-convert" --src "$src" --dst "$out/${name}_db3" --dst-storage sqlite3
+    fi
+    if [ ! -f "$out/${name}_sorted.bag" ]; then
+        "$venv/bin/rosbags-convert" --src "$src" --dst "$out/${name}_sorted.tmp.bag"
+        mv "$out/${name}_sorted.tmp.bag" "$out/${name}_sorted.bag"
     fi
 done
 echo "make_ros2_bags: ROS 2 bags in $out (rosbags $ROSBAGS_VERSION)"

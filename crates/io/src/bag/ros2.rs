@@ -44,7 +44,7 @@ pub struct FileCounts {
 /// One storage file.
 #[derive(Debug)]
 enum Storage {
-    Mcap(McapFile),
+    Mcap(Box<McapFile>),
     Sqlite(SqliteFile),
 }
 
@@ -63,7 +63,7 @@ impl Storage {
         };
         let head = &head[..got];
         if head.starts_with(b"\x89MCAP") {
-            Ok(Self::Mcap(McapFile::open(path)?))
+            Ok(Self::Mcap(Box::new(McapFile::open(path)?)))
         } else if head.starts_with(b"SQLite format 3\0") {
             Ok(Self::Sqlite(SqliteFile::open(path)?))
         } else if head.starts_with(&[0x28, 0xb5, 0x2f, 0xfd]) {
