@@ -12,8 +12,10 @@
 //! ranges) equals, bit for bit, one decoded from the original ROS 1 bag, and that as many
 //! odometry readings decode; (2) that `slamkit lidar` on the MCAP and `.db3` bags gives the
 //! trajectory it gives on the ROS 1 bag re-written by the same tool in the same order
-//! (`<name>_sorted.bag`), relation by relation within 1e-3 m; and print how far those runs
-//! are from the original bag's.
+//! (`<name>_sorted.bag`), relation by relation within 1e-3 m (measured: 0 m, the same poses).
+//! The original bag's run is not repeated here (`bag.rs` runs it): measured once on
+//! 2026-11-26, it differs from the reordered run by up to 18.6 m (Intel) and 0.67 m (ACES)
+//! over the relations, the effect of the order alone.
 //!
 //! Skipped only when the converted bags are absent and `SLAMKIT_DATA` is unset; with
 //! `SLAMKIT_DATA` set, missing bags are a failure (run the script).
@@ -134,12 +136,7 @@ fn ros2_matches_ros1(name: &str, relations: usize) {
     );
     let tmp = tempfile::tempdir().unwrap();
     let mut outs = Vec::new();
-    for (label, bag) in [
-        ("sorted", &sorted),
-        ("mcap", &mcap),
-        ("db3", &db3),
-        ("ros1", &ros1),
-    ] {
+    for (label, bag) in [("sorted", &sorted), ("mcap", &mcap), ("db3", &db3)] {
         let out = tmp.path().join(label);
         let stdout = slamkit(&[
             "lidar",
