@@ -156,10 +156,6 @@ fn ros2_matches_ros1(name: &str, relations: usize) {
         assert_eq!(n, relations);
         assert!(worst < 1e-3, "{name}: {label} run differs by {worst} m");
     }
-    let (reordered, _) = largest_relation_difference(&outs[0], &outs[3], &rel);
-    println!(
-        "{name}: the original ROS 1 bag's run vs the same messages reordered: {reordered:.3e} m"
-    );
 }
 
 #[test]
