@@ -48,7 +48,8 @@ pub fn detect_layout(dir: &Path) -> Result<Option<DatasetFormat>, IoError> {
     Ok(seven.then_some(DatasetFormat::SevenScenes))
 }
 
-/// True when the file at `path` starts like a robot bag: a ROS 1 bag (`#ROSBAG V`), an MCAP
+/// True when `path` is a ROS 2 bag folder (with `metadata.yaml`), or a file that starts like a
+/// robot bag: a ROS 1 bag (`#ROSBAG V`), an MCAP
 /// file or an SQLite database (ROS 2 `.db3`); the bag reader then says which it reads
 /// ([`crate::bag`]). Anything else (a CARMEN log, plain or gzip; a missing file) is `false`.
 ///
@@ -65,6 +66,10 @@ pub fn detect_layout(dir: &Path) -> Result<Option<DatasetFormat>, IoError> {
 /// ```
 pub fn is_bag(path: &Path) -> bool {
     use std::io::Read;
+    if path.is_dir() {
+        // a ROS 2 bag folder
+        return path.join("metadata.yaml").is_file();
+    }
     let mut head = [0u8; 16];
     let Ok(file) = std::fs::File::open(path) else {
         return false;

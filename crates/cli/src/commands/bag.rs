@@ -1,9 +1,9 @@
-//! `slamkit bag info`: what a ROS 1 bag holds; and the bag side of `slamkit lidar BAG`: its
+//! `slamkit bag info`: what a ROS 1 or ROS 2 bag holds; and the bag side of `slamkit lidar BAG`: its
 //! topics chosen, its scans read as a lidar log (all the reading is `slamkit_io::bag`'s).
 
 use anyhow::Context;
 use slamkit_io::bag::scans::Mounting;
-use slamkit_io::bag::{bag_info, read_scan_log, Bag, BagInfo, ScanTopics};
+use slamkit_io::bag::{read_scan_log, BagFormat, BagInfo, ScanTopics};
 use slamkit_io::carmen::CarmenLog;
 use std::path::{Path, PathBuf};
 
@@ -18,7 +18,8 @@ pub struct BagArgs {
 enum BagCommand {
     /// Print a bag's topics, message types, counts and time span.
     Info {
-        /// The ROS 1 bag (`.bag`).
+        /// The bag: ROS 1 (`.bag`), or ROS 2 (a folder with `metadata.yaml`, or one `.mcap`
+        /// or `.db3` file).
         bag: PathBuf,
         /// Print one JSON object instead of text.
         #[arg(long)]
@@ -52,8 +53,8 @@ pub fn run(args: &BagArgs) -> anyhow::Result<()> {
 }
 
 fn info(path: &Path, as_json: bool) -> anyhow::Result<()> {
-    let mut bag = Bag::open(path)?;
-    let info = bag_info(&mut bag)?;
+    let mut bag = slamkit_io::bag::open(path)?;
+    let info = bag.summary()?;
     if as_json {
         let mut value = serde_json::to_value(&info)?;
         value["duration_s"] = serde_json::json!(info.duration_s());
@@ -66,6 +67,12 @@ fn info(path: &Path, as_json: bool) -> anyhow::Result<()> {
 
 fn print_info(info: &BagInfo) {
     println!("bag:        {}", info.file);
+    let format = match info.format {
+        BagFormat::Ros1 => "ROS 1 bag (format 2.0)",
+        BagFormat::Mcap => "ROS 2 bag, MCAP storage",
+        BagFormat::Sqlite3 => "ROS 2 bag, SQLite 3 storage (.db3)",
+    };
+    println!("format:     {format}");
     let index = match &info.index {
         slamkit_io::bag::reader::IndexState::Indexed => "indexed".to_string(),
         slamkit_io::bag::reader::IndexState::NotIndexed => {

@@ -20,6 +20,8 @@ pub enum Compression {
     Bz2,
     /// LZ4 frames.
     Lz4,
+    /// Zstandard (MCAP chunks of ROS 2 bags).
+    Zstd,
 }
 
 impl Compression {
@@ -61,12 +63,28 @@ pub fn decompress(header: &Fields, data: &[u8]) -> Result<Vec<u8>, RecordError> 
             "chunk claims {size} bytes, more than the {MAX_CHUNK_BYTES} accepted"
         )));
     }
+    decompress_exact(compression, data, u64::from(size))
+}
+
+/// `data` decompressed to exactly `size` bytes (ROS 1 and MCAP chunks alike); more or fewer is
+/// an error, and no more than `size + 1` bytes are ever produced.
+pub(crate) fn decompress_exact(
+    compression: Compression,
+    data: &[u8],
+    size: u64,
+) -> Result<Vec<u8>, RecordError> {
     let out = match compression {
         Compression::None => data.to_vec(),
         Compression::Bz2 => read_bounded(bzip2::read::BzDecoder::new(data), size, "bz2")?,
         Compression::Lz4 => read_bounded(lz4_flex::frame::FrameDecoder::new(data), size, "lz4")?,
+        Compression::Zstd => {
+            let decoder = ruzstd::decoding::StreamingDecoder::new(data).map_err(|e| {
+                RecordError::Malformed(format!("zstd chunk cannot be decompressed: {e}"))
+            })?;
+            read_bounded(decoder, size, "zstd")?
+        }
     };
-    if out.len() != size as usize {
+    if out.len() as u64 != size {
         return Err(RecordError::Malformed(format!(
             "chunk holds {} bytes once decompressed, its header says {size}",
             out.len()
@@ -76,10 +94,10 @@ pub fn decompress(header: &Fields, data: &[u8]) -> Result<Vec<u8>, RecordError> 
 }
 
 /// Reads at most `size + 1` bytes from the decoder (one more shows a size mismatch).
-fn read_bounded<R: Read>(decoder: R, size: u32, name: &str) -> Result<Vec<u8>, RecordError> {
+fn read_bounded<R: Read>(decoder: R, size: u64, name: &str) -> Result<Vec<u8>, RecordError> {
     let mut out = Vec::with_capacity((size as usize).min(1 << 24));
     decoder
-        .take(u64::from(size) + 1)
+        .take(size + 1)
         .read_to_end(&mut out)
         .map_err(|e| RecordError::Malformed(format!("{name} chunk cannot be decompressed: {e}")))?;
     Ok(out)

@@ -1,8 +1,9 @@
 //! Connections: each topic of a bag with the message type recorded on it, that type's md5sum
-//! and its full message definition (the `.msg` text with every nested type), as the recording
+//! (ROS 1), its serialisation and its full message definition (the `.msg` text with every nested type), as the recording
 //! node published them.
 
 use super::record::{Fields, RecordError};
+use super::wire::Serialization;
 
 /// One connection of a bag (a topic as recorded from one publisher).
 #[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
@@ -13,11 +14,14 @@ pub struct Connection {
     pub topic: String,
     /// Message type (`sensor_msgs/LaserScan`).
     pub message_type: String,
-    /// md5sum of the message definition, as ROS computes it (32 hex digits).
+    /// md5sum of the message definition, as ROS 1 computes it (32 hex digits; empty in a
+    /// ROS 2 bag).
     pub md5sum: String,
-    /// The message definition text stored in the bag.
+    /// The message definition text stored in the bag (empty when it stores none).
     #[serde(skip)]
     pub message_definition: String,
+    /// How its messages are serialised.
+    pub serialization: Serialization,
     /// The publishing node, when recorded.
     pub callerid: Option<String>,
     /// True for a latched topic (`/tf_static`, `/map`).
@@ -36,6 +40,7 @@ impl Connection {
             message_type: text("type")?,
             md5sum: text("md5sum")?,
             message_definition: text("message_definition")?,
+            serialization: Serialization::Ros1,
             callerid: fields.string("callerid").ok().map(str::to_string),
             latching: fields.get("latching") == Some(b"1"),
         })

@@ -16,7 +16,8 @@ pub struct TopicInfo {
     pub topic: String,
     /// Message type (of its first connection; see `types` when there are several).
     pub message_type: String,
-    /// md5sum of the message type.
+    /// md5sum of the message type (ROS 1; empty for ROS 2).
+    #[serde(skip_serializing_if = "String::is_empty")]
     pub md5sum: String,
     /// Messages on the topic.
     pub messages: usize,
@@ -26,11 +27,25 @@ pub struct TopicInfo {
     pub latching: bool,
 }
 
+/// The kind of bag.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BagFormat {
+    /// ROS 1 bag, format 2.0.
+    Ros1,
+    /// ROS 2 bag stored in MCAP.
+    Mcap,
+    /// ROS 2 bag stored in SQLite 3 (`.db3`).
+    Sqlite3,
+}
+
 /// Summary of a bag.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct BagInfo {
-    /// The file.
+    /// The file (or ROS 2 bag folder).
     pub file: String,
+    /// The kind of bag.
+    pub format: BagFormat,
     /// The state of the index (counts come from it when it is `indexed`).
     pub index: IndexState,
     /// Topics, sorted by name.
@@ -41,7 +56,7 @@ pub struct BagInfo {
     pub start_s: Option<f64>,
     /// Latest record time \[s\].
     pub end_s: Option<f64>,
-    /// Chunks.
+    /// Chunks (none in a `.db3`).
     pub chunks: usize,
     /// Compression of the chunks (known after a walk only; empty when counted from the index).
     pub compression: Vec<Compression>,
@@ -98,6 +113,7 @@ pub fn bag_info<R: Read + Seek>(bag: &mut Bag<R>) -> Result<BagInfo, BagError> {
     let end = per_conn.values().map(|c| c.end).max();
     Ok(BagInfo {
         file: bag.name().to_string(),
+        format: BagFormat::Ros1,
         index: bag.index_state().clone(),
         messages: per_conn.values().map(|c| c.messages).sum(),
         topics: topics.into_values().collect(),

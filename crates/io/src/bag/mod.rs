@@ -1,5 +1,13 @@
-//! ROS 1 bags (format 2.0) read in pure Rust, with no ROS installed.
+//! ROS 1 bags (format 2.0) and ROS 2 bags (MCAP, SQLite `.db3`) read with no ROS installed.
 //!
+//! [`open`] takes any of them and gives a [`MessageSource`]: topics, messages in storage
+//! order, a summary. ROS 2 bags are a folder (`metadata.yaml` and storage files) or one
+//! storage file ([`ros2`], [`mcap_file`], [`sqlite_file`]). Messages are decoded by one model
+//! ([`messages`]) from either wire format ([`wire`]: ROS 1 serialisation in [`ros1`], CDR in
+//! [`cdr`]), each topic checked first against what the bag stores about its type (ROS 1
+//! md5sums, ROS 2 definitions: [`definition`]).
+//!
+//! The ROS 1 side:
 //! A bag is a sequence of records (see the format description of `rosbag`, "Bag Format 2.0"):
 //! a bag header pointing at the index, chunks of connection and message records stored plain,
 //! bzip2- or LZ4-compressed, and at the end the index (every connection, and per chunk its
@@ -19,19 +27,27 @@
 //!   mounting from `/tf_static`, the same [`crate::carmen::CarmenLog`] a CARMEN log gives, so
 //!   that sessions do not know bags exist.
 
+pub mod cdr;
 pub mod chunk;
 pub mod connection;
+pub mod definition;
 pub mod info;
+pub mod mcap_file;
 pub mod messages;
 pub mod reader;
 pub mod record;
 pub mod ros1;
+pub mod ros2;
 pub mod scans;
+pub mod source;
+pub mod sqlite_file;
+pub mod wire;
 
-pub use info::{bag_info, BagInfo};
+pub use info::{bag_info, BagFormat, BagInfo};
 pub use reader::{Bag, Order};
 pub use record::RecordError;
 pub use scans::{read_scan_log, BagScanLog, ScanTopics};
+pub use source::{open, MessageSource};
 
 /// A bag that cannot be read, or read as asked.
 #[derive(Debug, thiserror::Error)]
@@ -45,12 +61,20 @@ pub enum BagError {
         /// The operating system's error (in the message, not a `source()`).
         error: std::io::Error,
     },
-    /// The file is not a ROS 1 bag of format 2.0.
-    #[error("{file}: not a ROS 1 bag (format 2.0): {what}")]
+    /// The file is not a bag (ROS 1 of format 2.0, or ROS 2).
+    #[error("{file}: not a ROS 1 bag (format 2.0) or ROS 2 bag: {what}")]
     NotABag {
         /// The file.
         file: String,
         /// What it looks like instead.
+        what: String,
+    },
+    /// A ROS 2 storage file that cannot be read (SQLite's error, a file compressed whole).
+    #[error("{file}: {what}")]
+    Storage {
+        /// The storage file.
+        file: String,
+        /// What is wrong.
         what: String,
     },
     /// A record is damaged so that reading cannot go on.

@@ -473,9 +473,9 @@ fn describe_magic(head: &[u8]) -> String {
             .collect();
         format!("a ROS 1 bag of format {version}, which slamkit does not read (`rosbag fix` converts it)")
     } else if head.starts_with(b"\x89MCAP") {
-        "an MCAP file (ROS 2), not read yet".into()
+        "an MCAP file (a ROS 2 bag: read it through `bag::open`)".into()
     } else if head.starts_with(b"SQLite format 3") {
-        "an SQLite file (a ROS 2 .db3 bag), not read yet".into()
+        "an SQLite file (a ROS 2 .db3 bag: read it through `bag::open`)".into()
     } else {
         "no '#ROSBAG V2.0' magic".into()
     }

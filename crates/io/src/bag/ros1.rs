@@ -5,6 +5,7 @@
 //! connection said).
 
 use super::record::RosTime;
+use super::wire::Wire;
 
 /// Why a message could not be decoded.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -45,38 +46,37 @@ impl<'a> Cursor<'a> {
         self.pos += N;
         Ok(b)
     }
+}
 
-    /// A `uint8`.
-    pub fn u8(&mut self) -> Result<u8, DecodeError> {
+impl Wire for Cursor<'_> {
+    fn header_seq(&mut self) -> Result<Option<u32>, DecodeError> {
+        self.u32().map(Some)
+    }
+
+    fn u8(&mut self) -> Result<u8, DecodeError> {
         self.take::<1>("uint8").map(|b| b[0])
     }
 
-    /// A `uint32`.
-    pub fn u32(&mut self) -> Result<u32, DecodeError> {
+    fn u32(&mut self) -> Result<u32, DecodeError> {
         self.take("uint32").map(u32::from_le_bytes)
     }
 
-    /// A `float32`.
-    pub fn f32(&mut self) -> Result<f32, DecodeError> {
+    fn f32(&mut self) -> Result<f32, DecodeError> {
         self.take("float32").map(f32::from_le_bytes)
     }
 
-    /// A `float64`.
-    pub fn f64(&mut self) -> Result<f64, DecodeError> {
+    fn f64(&mut self) -> Result<f64, DecodeError> {
         self.take("float64").map(f64::from_le_bytes)
     }
 
-    /// A `time`.
-    pub fn time(&mut self) -> Result<RosTime, DecodeError> {
+    fn time(&mut self) -> Result<RosTime, DecodeError> {
         Ok(RosTime {
             sec: self.u32()?,
             nsec: self.u32()?,
         })
     }
 
-    /// The `u32` count of a variable-length array of `elem_bytes`-byte elements, checked
-    /// against the bytes left.
-    pub fn count(&mut self, elem_bytes: usize) -> Result<usize, DecodeError> {
+    fn count(&mut self, elem_bytes: usize) -> Result<usize, DecodeError> {
         let n = self.u32()? as usize;
         let left = self.bytes.len() - self.pos;
         if n.saturating_mul(elem_bytes.max(1)) > left {
@@ -87,8 +87,7 @@ impl<'a> Cursor<'a> {
         Ok(n)
     }
 
-    /// A `string` (UTF-8 checked).
-    pub fn string(&mut self) -> Result<String, DecodeError> {
+    fn string(&mut self) -> Result<String, DecodeError> {
         let n = self.count(1)?;
         let bytes = &self.bytes[self.pos..self.pos + n];
         let s = std::str::from_utf8(bytes).map_err(|_| self.error("string is not UTF-8"))?;
@@ -96,23 +95,16 @@ impl<'a> Cursor<'a> {
         Ok(s.to_string())
     }
 
-    /// A `float32[]`.
-    pub fn f32_array(&mut self) -> Result<Vec<f32>, DecodeError> {
-        let n = self.count(4)?;
-        (0..n).map(|_| self.f32()).collect()
+    fn bytes(&mut self, n: usize) -> Result<Vec<u8>, DecodeError> {
+        let b = self
+            .bytes
+            .get(self.pos..self.pos.saturating_add(n))
+            .ok_or_else(|| self.error(format!("message ends inside {n} bytes of data")))?;
+        self.pos += n;
+        Ok(b.to_vec())
     }
 
-    /// A `float64[N]` of fixed length.
-    pub fn f64_fixed<const N: usize>(&mut self) -> Result<[f64; N], DecodeError> {
-        let mut out = [0.0; N];
-        for v in &mut out {
-            *v = self.f64()?;
-        }
-        Ok(out)
-    }
-
-    /// Fails unless every byte was used.
-    pub fn finish(&self) -> Result<(), DecodeError> {
+    fn finish(&self) -> Result<(), DecodeError> {
         let left = self.bytes.len() - self.pos;
         if left == 0 {
             Ok(())

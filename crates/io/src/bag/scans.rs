@@ -26,14 +26,15 @@
 //!   between the two frames, the laser sits at the base (identity), as in CARMEN logs.
 //! * A message that does not decode is skipped and counted ([`CarmenLog::skipped`]).
 
-use super::messages::{check_type, LaserScanMsg, OdometryMsg, RosMessage, TfMessageMsg};
-use super::reader::{Bag, IndexState, Order, ReadStats};
+use super::connection::Connection;
+use super::messages::{check_type, is_type, LaserScanMsg, OdometryMsg, RosMessage, TfMessageMsg};
+use super::reader::{IndexState, ReadStats};
+use super::source::MessageSource;
 use super::BagError;
 use crate::carmen::{no_return_threshold, CarmenLog, SkipReason, SkippedLine};
 use crate::odometry_bracket::{OdomSample, OdometryBracket};
 use slamkit_core::{LaserScan, Pose2, Pose3};
 use std::collections::HashMap;
-use std::io::{Read, Seek};
 use std::path::Path;
 
 /// The topics to read; `None` chooses by type.
@@ -87,45 +88,43 @@ pub struct BagScanLog {
     pub index: IndexState,
 }
 
-/// Reads the lidar log of the bag at `path`.
+/// Reads the lidar log of the bag at `path` (ROS 1 or ROS 2, see [`super::open`]).
 pub fn read_scan_log(path: &Path, topics: &ScanTopics) -> Result<BagScanLog, BagError> {
-    let mut bag = Bag::open(path)?;
-    scan_log(&mut bag, topics)
+    let mut bag = super::open(path)?;
+    scan_log(bag.as_mut(), topics)
 }
 
 /// Reads the lidar log of an open bag (see the module documentation).
-pub fn scan_log<R: Read + Seek>(
-    bag: &mut Bag<R>,
+pub fn scan_log<S: MessageSource + ?Sized>(
+    bag: &mut S,
     topics: &ScanTopics,
 ) -> Result<BagScanLog, BagError> {
-    if bag.connections().is_empty() {
-        // No index: a first walk finds the connections.
-        super::reader::count_by_connection(bag)?;
-    }
-    let file = bag.name().to_string();
-    let scan_topic = choose_topic::<LaserScanMsg>(bag, topics.scan.as_deref(), "--scan-topic")?
+    // Without an index, a first walk finds the connections.
+    bag.find_connections()?;
+    let file = bag.bag_name().to_string();
+    let scan_topic = choose_topic::<LaserScanMsg, _>(bag, topics.scan.as_deref(), "--scan-topic")?
         .ok_or_else(|| BagError::Topics {
             file: file.clone(),
             message: format!(
                 "no {} topic (topics: {}{})",
                 LaserScanMsg::TYPE,
                 topic_list(bag),
-                match bag.index_state() {
+                match bag.index() {
                     IndexState::Unreadable(why) => format!("; the index is unreadable: {why}"),
                     _ => String::new(),
                 }
             ),
         })?;
-    let odom_topic = choose_topic::<OdometryMsg>(bag, topics.odom.as_deref(), "--odom-topic")?;
+    let odom_topic = choose_topic::<OdometryMsg, _>(bag, topics.odom.as_deref(), "--odom-topic")?;
     let mut state = Collect::default();
-    let read = bag.read_messages(Order::Storage, |conn, msg| {
+    let read = bag.read_stored(&mut |conn, msg| {
         state.message_no += 1;
         let result = if conn.topic == scan_topic {
-            state.scan(msg.data)
+            state.scan(conn, msg.data)
         } else if Some(&conn.topic) == odom_topic.as_ref() {
-            state.odom(msg.data)
+            state.odom(conn, msg.data)
         } else if conn.topic == "/tf_static" && check_type::<TfMessageMsg>(conn).is_ok() {
-            state.tf_static(msg.data)
+            state.tf_static(conn, msg.data)
         } else {
             state.log.other_message_lines += 1;
             Ok(())
@@ -169,27 +168,23 @@ pub fn scan_log<R: Read + Seek>(
         odom_topic,
         mounting,
         read,
-        index: bag.index_state().clone(),
+        index: bag.index().clone(),
     })
 }
 
 /// The topic of type `M`: the one asked for (checked), else the only one of that type.
-fn choose_topic<M: RosMessage>(
-    bag: &Bag<impl Read + Seek>,
+fn choose_topic<M: RosMessage, S: MessageSource + ?Sized>(
+    bag: &S,
     asked: Option<&str>,
     flag: &str,
 ) -> Result<Option<String>, BagError> {
-    let file = bag.name().to_string();
+    let file = bag.bag_name().to_string();
     let err = |message: String| BagError::Topics {
         file: file.clone(),
         message,
     };
     if let Some(topic) = asked {
-        let conns: Vec<_> = bag
-            .connections()
-            .values()
-            .filter(|c| c.topic == topic)
-            .collect();
+        let conns: Vec<_> = bag.topics().values().filter(|c| c.topic == topic).collect();
         if conns.is_empty() {
             return Err(err(format!(
                 "no topic {topic} (topics: {})",
@@ -202,9 +197,9 @@ fn choose_topic<M: RosMessage>(
         return Ok(Some(topic.to_string()));
     }
     let mut found: Vec<&str> = bag
-        .connections()
+        .topics()
         .values()
-        .filter(|c| c.message_type == M::TYPE)
+        .filter(|c| is_type::<M>(c))
         .map(|c| c.topic.as_str())
         .collect();
     found.sort_unstable();
@@ -212,7 +207,7 @@ fn choose_topic<M: RosMessage>(
     match found.as_slice() {
         [] => Ok(None),
         [one] => {
-            for conn in bag.connections().values().filter(|c| c.topic == *one) {
+            for conn in bag.topics().values().filter(|c| c.topic == *one) {
                 check_type::<M>(conn).map_err(|e| err(e.to_string()))?;
             }
             Ok(Some((*one).to_string()))
@@ -225,9 +220,9 @@ fn choose_topic<M: RosMessage>(
     }
 }
 
-fn topic_list<R: Read + Seek>(bag: &Bag<R>) -> String {
+fn topic_list<S: MessageSource + ?Sized>(bag: &S) -> String {
     let mut topics: Vec<String> = bag
-        .connections()
+        .topics()
         .values()
         .map(|c| format!("{} [{}]", c.topic, c.message_type))
         .collect();
@@ -253,8 +248,8 @@ struct Collect {
 }
 
 impl Collect {
-    fn scan(&mut self, bytes: &[u8]) -> Result<(), String> {
-        let msg = LaserScanMsg::decode(bytes).map_err(|e| e.to_string())?;
+    fn scan(&mut self, conn: &Connection, bytes: &[u8]) -> Result<(), String> {
+        let msg = LaserScanMsg::decode_from(conn, bytes).map_err(|e| e.to_string())?;
         let scan = to_laser_scan(&msg)?;
         self.laser_frame.get_or_insert(msg.header.frame_id);
         self.log.time_order.add(scan.timestamp, self.message_no);
@@ -262,8 +257,8 @@ impl Collect {
         Ok(())
     }
 
-    fn odom(&mut self, bytes: &[u8]) -> Result<(), String> {
-        let msg = OdometryMsg::decode(bytes).map_err(|e| e.to_string())?;
+    fn odom(&mut self, conn: &Connection, bytes: &[u8]) -> Result<(), String> {
+        let msg = OdometryMsg::decode_from(conn, bytes).map_err(|e| e.to_string())?;
         let pose = msg
             .pose
             .to_isometry()
@@ -279,8 +274,8 @@ impl Collect {
         Ok(())
     }
 
-    fn tf_static(&mut self, bytes: &[u8]) -> Result<(), String> {
-        let msg = TfMessageMsg::decode(bytes).map_err(|e| e.to_string())?;
+    fn tf_static(&mut self, conn: &Connection, bytes: &[u8]) -> Result<(), String> {
+        let msg = TfMessageMsg::decode_from(conn, bytes).map_err(|e| e.to_string())?;
         for t in msg.transforms {
             let pose = t
                 .transform

@@ -1,0 +1,52 @@
+#!/usr/bin/env bash
+# Converts the Freiburg benchmark's ROS 1 bags ($SLAMKIT_DATA/lidar2d/{intel,aces}/
+# *.clf.orig.bag) into ROS 2 bags with an independent tool, PyPI `rosbags` (pinned below):
+# `rosbags-convert` writes each as an MCAP bag with zstd-compressed chunks (rosbag2's default
+# MCAP profile compresses chunks with zstd) and as an SQLite .db3 bag; and, as the reference
+# the ROS 2 bags are compared with, into a ROS 1 bag again (`<name>_sorted.bag`): the same
+# messages in the order rosbags writes them (by record time), which is not the order the
+# original bags store them in. slamkit's `ros2_bags` tests (crates/cli/tests/ros2_bags.rs)
+# read them. Nothing here is committed.
+#
+# Usage: scripts/make_ros2_bags.sh [OUT_DIR]      (default: target/ros2-bags)
+# Needs python3 with venv; installs rosbags into OUT_DIR/venv. Bags already converted are kept.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+ROSBAGS_VERSION=0.11.9
+out="${1:-target/ros2-bags}"
+data="${SLAMKIT_DATA:-}"
+if [ -z "$data" ]; then
+    echo "make_ros2_bags: SLAMKIT_DATA is not set; nothing to convert" >&2
+    exit 0
+fi
+mkdir -p "$out"
+venv="$out/venv"
+if [ ! -x "$venv/bin/rosbags-convert" ] ||
+    ! "$venv/bin/python" -c "import importlib.metadata as m, sys; sys.exit(m.version('rosbags') != '$ROSBAGS_VERSION')"; then
+    rm -rf "$venv"
+    python3 -m venv "$venv"
+    "$venv/bin/pip" install --quiet --disable-pip-version-check "rosbags==$ROSBAGS_VERSION"
+fi
+
+for name in intel aces; do
+    src="$data/lidar2d/$name/$name.clf.orig.bag"
+    if [ ! -f "$src" ]; then
+        echo "make_ros2_bags: $src missing" >&2
+        exit 1
+    fi
+    if [ ! -f "$out/${name}_mcap/metadata.yaml" ]; then
+        rm -rf "$out/${name}_mcap"
+        "$venv/bin/rosbags-convert" --src "$src" --dst "$out/${name}_mcap" \
+            --dst-storage mcap --compress zstd --compress-mode storage
+    fi
+    if [ ! -f "$out/${name}_db3/metadata.yaml" ]; then
+        rm -rf "$out/${name}_db3"
+        "$venv/bin/rosbags-convert" --src "$src" --dst "$out/${name}_db3" --dst-storage sqlite3
+    fi
+    if [ ! -f "$out/${name}_sorted.bag" ]; then
+        "$venv/bin/rosbags-convert" --src "$src" --dst "$out/${name}_sorted.tmp.bag"
+        mv "$out/${name}_sorted.tmp.bag" "$out/${name}_sorted.bag"
+    fi
+done
+echo "make_ros2_bags: ROS 2 bags in $out (rosbags $ROSBAGS_VERSION)"
