@@ -16,7 +16,7 @@ python="${PYTHON:-python3}"
 rm -rf "$venv" "$wheels"
 "$python" -m venv "$venv"
 "$venv/bin/pip" install --quiet --disable-pip-version-check \
-    maturin==1.16.0 pytest==9.2.0 numpy==2.4.6 evo==1.38.1
+    maturin==1.16.0 pytest==9.2.0 numpy==2.4.6 evo==1.38.1 mcap==1.6.0
 
 # The release profile, as the CLI the tests compare with is built.
 "$venv/bin/maturin" build --quiet --release --manifest-path crates/py/Cargo.toml --out "$wheels"

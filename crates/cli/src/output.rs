@@ -55,12 +55,6 @@ fn proc_kib(file: &str, key: &str) -> Option<u64> {
     line.split_whitespace().nth(1)?.parse().ok()
 }
 
-/// Writes `grid` as `STEM.pgm` + `STEM.yaml` (ROS map_server) and `STEM.png`.
-pub fn write_grid(grid: &slamkit_map::OccupancyGrid, stem: &std::path::Path) -> anyhow::Result<()> {
-    slamkit_map::save_map_yaml(grid, &stem.with_extension("yaml"))?;
-    Ok(slamkit_map::save_png(grid, &stem.with_extension("png"))?)
-}
-
 /// Refuses a run whose particle maps need more memory than this machine has (MemTotal), before
 /// it starts: `bytes` is the least they take ([`particle_maps_min_bytes`], `None` when unknown).
 ///
@@ -105,9 +99,11 @@ pub fn finish(folder: OutputFolder, report: &serde_json::Value) -> anyhow::Resul
     Ok(())
 }
 
-/// The per-stage timing summary as JSON: `{stage: {median_ms, p95_ms, total_ms, count}}`.
-pub fn timings_json(timings: &slamkit_core::StageTimings) -> serde_json::Value {
-    serde_json::to_value(timings.summary()).unwrap_or(serde_json::Value::Null)
+/// Adds the fields of the JSON object `more` to the object `report` (those of `more` win).
+pub fn merge_json(report: &mut serde_json::Value, more: serde_json::Value) {
+    if let (Some(report), serde_json::Value::Object(more)) = (report.as_object_mut(), more) {
+        report.extend(more);
+    }
 }
 
 #[cfg(test)]

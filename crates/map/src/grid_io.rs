@@ -153,6 +153,13 @@ pub fn save_image_yaml(
     write_file(yaml_path, yaml.to_yaml_string().as_bytes())
 }
 
+/// Writes `grid` as the three files people and tools open: `STEM.pgm` + `STEM.yaml` (ROS
+/// `map_server`) and `STEM.png` (any image viewer); `stem` has no extension.
+pub fn save_grid_files(grid: &OccupancyGrid, stem: &Path) -> Result<(), MapFileError> {
+    save_map_yaml(grid, &stem.with_extension("yaml"))?;
+    save_png(grid, &stem.with_extension("png"))
+}
+
 /// Writes `grid` as a trinary PNG image.
 pub fn save_png(grid: &OccupancyGrid, png_path: &Path) -> Result<(), MapFileError> {
     save_image_png(trinary_image(grid), png_path)

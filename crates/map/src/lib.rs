@@ -34,7 +34,7 @@ pub mod tri_grid;
 mod test_room;
 
 pub use error::{MapError, MapFileError};
-pub use grid_io::{load_map_yaml, save_map_yaml, save_png, MapYaml};
+pub use grid_io::{load_map_yaml, save_grid_files, save_map_yaml, save_png, MapYaml};
 pub use likelihood_field::{LikelihoodField, LikelihoodFieldConfig};
 pub use occupancy_grid::{
     shared_tile_stats, CellBounds, CellIndex, InsertStats, Occupancy, OccupancyGrid,

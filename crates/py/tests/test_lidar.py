@@ -1,6 +1,7 @@
 """2D lidar from Python: the Intel example gives the CLI's trajectory and relations metric, the
 map it saves opens as the CLI reads it, and a saved map localises a robot again."""
 
+import base64
 import importlib.util
 import json
 import pathlib
@@ -26,11 +27,52 @@ def intel(data, cli, tmp_path_factory):
     folder = data / "lidar2d" / "intel"
     out = tmp_path_factory.mktemp("intel")
     example = load_example().main(folder, out / "python")
-    cli("lidar", folder / "intel.fromrosbag.clf.gz", "--out", out / "cli")
+    # recorded, which must not change the run: the comparisons below would see it
+    cli("lidar", folder / "intel.fromrosbag.clf.gz", "--out", out / "cli",
+        "--record", out / "intel.mcap")
     report = json.loads((out / "cli" / "report.json").read_text())
     cli_trajectory, _ = slamkit.read_trajectory(out / "cli" / "trajectory.tum")
     return {"folder": folder, "out": out, "example": example, "report": report,
-            "cli_trajectory": cli_trajectory}
+            "cli_trajectory": cli_trajectory, "recording": out / "intel.mcap"}
+
+
+def test_recording_opens_in_an_independent_mcap_reader(intel):
+    """`--record` as Foxglove and rerun would read it, through the MCAP project's own Python
+    reader: every channel with its Foxglove schema, counts equal to the run's, log times in
+    order, the last pose the trajectory's last, the last map a valid grid."""
+    reader_module = pytest.importorskip("mcap.reader")
+    report = intel["report"]
+    schemas = {"/scan": "foxglove.LaserScan", "/pose": "foxglove.PoseInFrame",
+               "/tf": "foxglove.FrameTransform", "/map": "foxglove.Grid",
+               "/path": "foxglove.PosesInFrame"}
+    counts, last, last_time = {}, {}, 0
+    with open(intel["recording"], "rb") as f:
+        reader = reader_module.make_reader(f)
+        for schema, channel, message in reader.iter_messages(log_time_order=False):
+            assert schema.name == schemas[channel.topic], channel.topic
+            assert channel.message_encoding == "json"
+            assert message.log_time >= last_time  # written in time order
+            last_time = message.log_time
+            counts[channel.topic] = counts.get(channel.topic, 0) + 1
+            last[channel.topic] = message
+    assert set(counts) == set(schemas)
+    assert counts == report["recording"]["messages"]
+    assert counts["/scan"] == report["frames"]["read"]
+    poses = intel["cli_trajectory"]
+    assert counts["/pose"] == counts["/tf"] == len(poses)
+
+    pose = json.loads(last["/pose"].data)["pose"]
+    position = [pose["position"][k] for k in "xyz"]
+    assert np.abs(np.array(position) - poses[-1, 1:4]).max() < 1e-6
+    path = json.loads(last["/path"].data)["poses"]
+    assert len(path) == len(poses)
+
+    grid = json.loads(last["/map"].data)
+    cells = np.frombuffer(base64.b64decode(grid["data"]), dtype=np.int8)
+    assert grid["fields"] == [{"name": "occupancy", "offset": 0, "type": 2}]
+    assert cells.size % grid["column_count"] == 0 and cells.size > 100_000
+    assert set(np.unique(cells)) <= {-1, 0, 100}
+    assert (cells == 100).sum() > 1000 and (cells == 0).sum() > (cells == 100).sum()
 
 
 def test_intel_example_gives_the_cli_result(intel):

@@ -20,7 +20,7 @@
 //! times are recorded per frame. The same simulation, sensors and duration give the same files
 //! byte for byte.
 
-use crate::{relation_pairs, sample_times, Simulation, Stream};
+use crate::{relation_pairs, sample_times, SimError, Simulation, Stream};
 use slamkit_core::observation::{FlowSample, ImuSample, RangePair};
 use slamkit_core::pose::{pose2_to_pose3, pose3_to_pose2};
 use slamkit_core::{StageTimings, Trajectory};
@@ -31,6 +31,7 @@ use slamkit_io::kitti_writer::KittiWriter;
 use slamkit_io::relations::Relation;
 use slamkit_io::tum_rgbd_writer::TumRgbdWriter;
 use slamkit_io::{write_tum, IoError};
+use std::collections::BTreeMap;
 use std::path::Path;
 use std::time::Instant;
 
@@ -69,6 +70,44 @@ impl Sensor {
             Sensor::Stereo => "stereo",
         }
     }
+
+    /// The sensors named in `names` (`lidar` is `lidar2d`), each once, in the order first named.
+    ///
+    /// ```
+    /// use slamkit_sim::recording::Sensor;
+    /// let names = ["lidar", "imu", "lidar2d"].map(String::from);
+    /// assert_eq!(Sensor::parse_list(&names)?, [Sensor::Lidar2d, Sensor::Imu]);
+    /// assert!(Sensor::parse_list(&["sonar".into()]).is_err());
+    /// # Ok::<(), slamkit_sim::SimError>(())
+    /// ```
+    ///
+    /// # Errors
+    /// [`SimError::InvalidConfig`] naming an unknown sensor and the known ones.
+    pub fn parse_list(names: &[String]) -> Result<Vec<Sensor>, SimError> {
+        const ALL: [Sensor; 6] = [
+            Sensor::Lidar2d,
+            Sensor::Range,
+            Sensor::Imu,
+            Sensor::Flow,
+            Sensor::Rgbd,
+            Sensor::Stereo,
+        ];
+        let mut sensors = Vec::new();
+        for name in names.iter().map(|n| n.trim()) {
+            let name = if name == "lidar" { "lidar2d" } else { name };
+            let Some(&sensor) = ALL.iter().find(|s| s.name() == name) else {
+                let known: Vec<&str> = ALL.iter().map(|s| s.name()).collect();
+                return Err(SimError::InvalidConfig(format!(
+                    "unknown sensor {name:?} (available: {})",
+                    known.join(", ")
+                )));
+            };
+            if !sensors.contains(&sensor) {
+                sensors.push(sensor);
+            }
+        }
+        Ok(sensors)
+    }
 }
 
 /// What was written for one sensor: named counts (`scans`, `relations`, `readings`,
@@ -79,6 +118,17 @@ pub struct Written {
     pub sensor: Sensor,
     /// Counts by name.
     pub counts: Vec<(&'static str, usize)>,
+}
+
+/// The counts of every sensor written, by sensor name and count name (`report.json`'s
+/// `frames` of `slamkit sim`).
+pub fn counts_by_sensor(
+    written: &[Written],
+) -> BTreeMap<&'static str, BTreeMap<&'static str, usize>> {
+    written
+        .iter()
+        .map(|w| (w.sensor.name(), w.counts.iter().copied().collect()))
+        .collect()
 }
 
 /// Writes `groundtruth.tum` and each of `sensors` (in order) for the first `duration_s` of

@@ -21,6 +21,7 @@
 //! The map frame is the first scan's x, y and heading (or the initial pose given), with z = 0
 //! at the floor under it. The session never reads ground truth.
 
+pub mod demo;
 pub mod grids;
 pub mod in_map;
 pub mod kidnapped;
@@ -28,6 +29,7 @@ pub mod layer_choice;
 pub mod map;
 pub mod particle_filter;
 pub mod readings;
+pub mod run_report;
 pub mod simulated;
 
 use crate::odometry_gate::{OdometryGate, OdometryGateConfig};

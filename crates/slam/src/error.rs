@@ -41,6 +41,17 @@ pub enum SlamError {
     /// A dataset or recording could not be read or written.
     #[error(transparent)]
     Io(#[from] slamkit_io::IoError),
+    /// A recording (`--record FILE.mcap`) could not be written.
+    #[error("recording {}: {message}", path.display())]
+    Recording {
+        /// The recording's file.
+        path: std::path::PathBuf,
+        /// What went wrong.
+        message: String,
+    },
+    /// A run's HTML report could not be written.
+    #[error(transparent)]
+    Report(#[from] slamkit_eval::report_html::ReportError),
     /// A run could not be scored against its ground truth.
     #[error(transparent)]
     Eval(#[from] slamkit_eval::EvalError),

@@ -16,6 +16,7 @@
 pub mod closed_loop;
 pub mod floor_mapping;
 pub mod map;
+mod run_files;
 
 pub use floor_mapping::{map_from_world, CameraStats, FrameOutcome, MountedCamera};
 

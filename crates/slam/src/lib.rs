@@ -39,6 +39,7 @@ pub mod map_file;
 pub mod merge;
 pub mod odometry_gate;
 pub mod profile;
+pub mod record;
 pub mod session;
 pub mod visual;
 

@@ -21,6 +21,7 @@
 
 pub mod map;
 pub mod preflight;
+pub mod run_report;
 
 use crate::map_file::{MapFile, MapFileError};
 use crate::odometry_gate::{OdometryGate, OdometryGateConfig};
@@ -454,29 +455,6 @@ impl LidarSlam {
                 }
             }
         }
-    }
-
-    /// The scans of `log` read and processed, and the broken ones skipped: scans the mapper
-    /// could not use, by reason, and log lines the reader could not parse (truncated, NaN,
-    /// garbage), by reason, with the log's time order (report.json's `scans`).
-    pub fn scan_counts(&self, log: &slamkit_io::carmen::CarmenLog) -> serde_json::Value {
-        let mut unreadable: std::collections::BTreeMap<&str, usize> = Default::default();
-        for line in &log.skipped {
-            *unreadable.entry(line.reason.key()).or_default() += 1;
-        }
-        let broken = &self.method_stats()["skipped_broken"];
-        let total: u64 = broken.as_object().map_or(0, |reasons| {
-            reasons.values().filter_map(|v| v.as_u64()).sum()
-        });
-        serde_json::json!({
-            "read": log.scans.len(),
-            "processed": self.frame_counts().processed,
-            "skipped_broken": total,
-            "skipped_broken_reasons": broken,
-            "unreadable_lines": log.skipped.len(),
-            "unreadable_line_reasons": unreadable,
-            "time_order": log.time_order,
-        })
     }
 
     /// The map as it stands: keyframes at their current poses and the pose graph.

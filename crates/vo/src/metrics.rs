@@ -32,6 +32,38 @@ pub struct VoMetrics {
     pub frames_without_ground_truth: usize,
 }
 
+/// Below this path length \[m\] the end-point error is not given as a percentage of the path:
+/// a centimetre over a few centimetres of path would read as tens of percent.
+const MIN_PATH_FOR_DRIFT_M: f64 = 1.0;
+
+impl std::fmt::Display for VoMetrics {
+    /// One line of ATE, RPE and end-point drift (as an error in metres on paths under a metre),
+    /// and a second naming the frames left unscored, when there were some.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let path_m = self.path_length_m;
+        let end_point = if path_m >= MIN_PATH_FOR_DRIFT_M {
+            let drift = self.end_point_drift_percent;
+            format!("end-point drift {drift:.2} % of {path_m:.1} m")
+        } else {
+            let error = self.end_point_error_m;
+            format!(
+                "end-point error {error:.3} m (the path, {path_m:.2} m, is too short for a \
+                 percentage)"
+            )
+        };
+        let (ate, rpe) = (self.ate.rmse, self.rpe.rmse);
+        write!(f, "ATE RMSE {ate:.4} m, RPE RMSE {rpe:.4} m, {end_point}")?;
+        if self.frames_without_ground_truth > 0 {
+            write!(
+                f,
+                "\nscored {} posed frames; {} without ground truth were not scored",
+                self.scored_frames, self.frames_without_ground_truth
+            )?;
+        }
+        Ok(())
+    }
+}
+
 /// Scores `estimate` against `ground_truth`, pairing poses by time stamp.
 ///
 /// # Errors

@@ -2,8 +2,7 @@
 //! topics chosen, its scans read as a lidar log (all the reading is `slamkit_io::bag`'s).
 
 use anyhow::Context;
-use slamkit_io::bag::scans::Mounting;
-use slamkit_io::bag::{read_scan_log, BagFormat, BagInfo, ScanTopics};
+use slamkit_io::bag::{read_scan_log, ScanTopics};
 use slamkit_io::carmen::CarmenLog;
 use std::path::{Path, PathBuf};
 
@@ -60,69 +59,9 @@ fn info(path: &Path, as_json: bool) -> anyhow::Result<()> {
         value["duration_s"] = serde_json::json!(info.duration_s());
         println!("{value}");
     } else {
-        print_info(&info);
+        print!("{info}");
     }
     Ok(())
-}
-
-fn print_info(info: &BagInfo) {
-    println!("bag:        {}", info.file);
-    let format = match info.format {
-        BagFormat::Ros1 => "ROS 1 bag (format 2.0)",
-        BagFormat::Mcap => "ROS 2 bag, MCAP storage",
-        BagFormat::Sqlite3 => "ROS 2 bag, SQLite 3 storage (.db3)",
-    };
-    println!("format:     {format}");
-    let index = match &info.index {
-        slamkit_io::bag::reader::IndexState::Indexed => "indexed".to_string(),
-        slamkit_io::bag::reader::IndexState::NotIndexed => {
-            "not indexed (the recording was not closed); counted by reading the chunks".into()
-        }
-        slamkit_io::bag::reader::IndexState::Unreadable(why) => {
-            format!("index unreadable ({why}); counted by reading the chunks")
-        }
-    };
-    println!("index:      {index}");
-    if let (Some(start), Some(end)) = (info.start_s, info.end_s) {
-        println!(
-            "time:       {start:.6} to {end:.6} s ({:.3} s)",
-            end - start
-        );
-    }
-    println!("messages:   {} in {} chunks", info.messages, info.chunks);
-    let width = info.topics.iter().map(|t| t.topic.len()).max().unwrap_or(0);
-    for t in &info.topics {
-        let mut notes = Vec::new();
-        if t.connections > 1 {
-            notes.push(format!("{} connections", t.connections));
-        }
-        if t.latching {
-            notes.push("latched".to_string());
-        }
-        let extra = if notes.is_empty() {
-            String::new()
-        } else {
-            format!(" ({})", notes.join(", "))
-        };
-        println!(
-            "topic:      {:width$}  {:>7} msgs  {}{extra}",
-            t.topic, t.messages, t.message_type
-        );
-    }
-    if let Some(walk) = &info.walk {
-        for chunk in &walk.damaged_chunks {
-            println!(
-                "damaged:    chunk at byte {} skipped: {}",
-                chunk.offset, chunk.error
-            );
-        }
-        if let Some(cut) = &walk.truncated {
-            println!(
-                "truncated:  the file ends inside the record at byte {}: {}",
-                cut.offset, cut.error
-            );
-        }
-    }
 }
 
 /// The lidar log of the bag at `path`, its topics, mounting and damage reported on the
@@ -133,62 +72,9 @@ pub(crate) fn read_log(path: &Path, topics: &TopicArgs) -> anyhow::Result<Carmen
         odom: topics.odom_topic.clone(),
     };
     let bag = read_scan_log(path, &topics).context("reading bag")?;
-    let mounting = match &bag.mounting {
-        Mounting::TfStatic {
-            base_frame,
-            laser_frame,
-            x_y_yaw: [x, y, yaw],
-            mirrored,
-            ..
-        } => format!(
-            "laser {laser_frame} at ({x:.3} m, {y:.3} m, {yaw:.3} rad) on {base_frame}{} \
-             (/tf_static)",
-            if *mirrored { ", upside down" } else { "" }
-        ),
-        Mounting::Identity { reason } => format!("laser at the base ({reason})"),
-    };
-    println!(
-        "bag {}: {} scans on {}, odometry {}, {mounting}",
-        path.display(),
-        bag.log.scans.len(),
-        bag.scan_topic,
-        bag.odom_topic.as_deref().unwrap_or("none"),
-    );
-    if let Mounting::TfStatic { tilt_deg, .. } = bag.mounting {
-        if tilt_deg > 5.0 {
-            eprintln!("warning: the laser is tilted {tilt_deg:.1}° from level; its scans are projected as they are");
-        }
-    }
-    if !bag.log.skipped.is_empty() {
-        eprintln!(
-            "warning: {} messages could not be decoded and were skipped (first: message {}: {})",
-            bag.log.skipped.len(),
-            bag.log.skipped[0].line,
-            bag.log.skipped[0].reason
-        );
-    }
-    if let slamkit_io::bag::reader::IndexState::Unreadable(why) = &bag.index {
-        eprintln!(
-            "warning: {}: the index is unreadable ({why}); the chunks were read one by one \
-             (a bag cut short loses what followed the cut)",
-            path.display()
-        );
-    }
-    for chunk in &bag.read.damaged_chunks {
-        eprintln!(
-            "warning: {}: chunk at byte {} skipped: {}",
-            path.display(),
-            chunk.offset,
-            chunk.error
-        );
-    }
-    if let Some(cut) = &bag.read.truncated {
-        eprintln!(
-            "warning: {}: the bag is cut short at byte {} ({}); the messages before it are read",
-            path.display(),
-            cut.offset,
-            cut.error
-        );
+    println!("bag {}: {}", path.display(), bag.describe());
+    for warning in bag.warnings() {
+        eprintln!("warning: {}: {warning}", path.display());
     }
     Ok(bag.log)
 }

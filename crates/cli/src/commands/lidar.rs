@@ -7,8 +7,7 @@ use crate::commands::bag::TopicArgs;
 use crate::commands::eval::load_relations;
 use crate::commands::{bag, lidar_drone, lidar_mcl};
 use crate::output::{
-    ensure_fits_memory, error_chain, finish, peak_rss_bytes, progress_bar, timings_json,
-    write_grid, Unsuccessful,
+    ensure_fits_memory, finish, merge_json, peak_rss_bytes, progress_bar, Unsuccessful,
 };
 use anyhow::Context;
 use serde::de::DeserializeOwned;
@@ -17,9 +16,11 @@ use serde_json::json;
 use slamkit_core::{Pose2, Trajectory};
 use slamkit_io::carmen::CarmenLog;
 use slamkit_io::output_folder::OutputFolder;
+use slamkit_map::save_grid_files;
 use slamkit_slam::lidar::preflight::{ensure_usable, particle_maps_min_bytes};
-use slamkit_slam::lidar::LidarMap;
+use slamkit_slam::lidar::{run_report, LidarMap};
 use slamkit_slam::profile::settings;
+use slamkit_slam::record::LidarRecording;
 use slamkit_slam::{LidarMethod, LidarSlam, LidarSlamConfig};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -96,6 +97,11 @@ pub struct LidarArgs {
     /// Benchmark relations to score against; by default `<log stem>.relations` beside the log.
     #[arg(long)]
     pub relations: Option<PathBuf>,
+    /// Record the run to this MCAP file (Foxglove's schemas; Foxglove and rerun open it): each
+    /// scan, its pose and `map → base_link`, and the map and path ten times over the run.
+    /// Not with `--ranges` or `--localize MAP.yaml` yet.
+    #[arg(long, value_name = "FILE.mcap", conflicts_with = "ranges")]
+    pub record: Option<PathBuf>,
     /// Output folder.
     #[arg(long, default_value = "out/lidar")]
     pub out: PathBuf,
@@ -145,13 +151,22 @@ pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
         }
     };
     let bar = progress_bar(log.scans.len() as u64, what);
-    for scan in &log.scans {
-        session.push_scan(scan.clone());
+    let mut recording = match &args.record {
+        Some(path) => Some(LidarRecording::create(path, log.scans.len())?),
+        None => None,
+    };
+    for (i, scan) in log.scans.iter().enumerate() {
+        let update = session.push_scan(scan.clone());
+        if let Some(recording) = recording.as_mut() {
+            recording.push(&session, &log.scans[..=i], &update)?;
+        }
         bar.inc(1);
     }
+    let recorded = recording
+        .map(|r| r.finish(&session, &log.scans))
+        .transpose()?;
     let session_seconds = session_started.elapsed().as_secs_f64();
     bar.finish_and_clear();
-    let counts = session.frame_counts();
 
     let trajectory = session.trajectory();
     slamkit_io::trajectory_file::write_tum(&out.join("trajectory.tum"), &trajectory)?;
@@ -161,7 +176,7 @@ pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
         slamkit_io::trajectory_file::write_tum(&path, &session.map().trajectory())?;
     }
     let grid = session.output_grid(&log.scans)?;
-    write_grid(&grid, &out.join("map"))?;
+    save_grid_files(&grid, &out.join("map"))?;
     let map_file = session.map_file()?;
     for path in std::iter::once(out.join("map.skmap")).chain(args.save_map.clone()) {
         map_file
@@ -169,7 +184,7 @@ pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
             .with_context(|| format!("saving the map to {}", path.display()))?;
     }
 
-    let report = json!({
+    let mut report = json!({
         "input": args.log,
         "method": match (&args.localize, &args.continue_map) {
             (Some(_), _) => "localise",
@@ -177,24 +192,14 @@ pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
             _ => match args.method { Method::Icp => "icp", Method::Rbpf => "rbpf" },
         },
         "map": args.localize.as_ref().or(args.continue_map.as_ref()),
-        "config": session.config(),
-        "frames": {
-            "read": log.scans.len(),
-            "processed": counts.processed,
-            "skipped": counts.skipped,
-            "failed": counts.failed,
-            "unreadable_lines": log.skipped.len(),
-        },
-        "scans": session.scan_counts(&log),
-        "session": session.stats(),
-        "stats": session.method_stats(),
         "wall_seconds": started.elapsed().as_secs_f64(),
         "session_seconds": session_seconds,
-        "timings_ms": timings_json(&session.timings()),
         "peak_rss_bytes": peak_rss_bytes(),
         "particle_maps_min_bytes": particle_maps_min_bytes,
-        "metrics": relations_metrics(args, &trajectory)?,
+        "recording": recorded.map(|messages| json!({ "file": args.record, "messages": messages })),
+        "metrics": relations_metrics(args, &trajectory),
     });
+    merge_json(&mut report, session.run_report(&log));
     finish(folder, &report)?;
     print_summary(&args.out, &report);
     let jumps = session.stats().odometry_rejected;
@@ -275,24 +280,11 @@ pub(crate) fn load_config<C: Serialize + DeserializeOwned + Default>(
     )?)
 }
 
-/// The relations metric of `trajectory` for report.json; when scoring fails, the error in
+/// The relations metric of `trajectory` for report.json
+/// ([`slamkit_slam::lidar::run_report::relations_metrics`]); when scoring fails, the error in
 /// `error` ([`finish`] writes the report, then fails with it).
-pub(crate) fn relations_metrics(
-    args: &LidarArgs,
-    trajectory: &Trajectory,
-) -> anyhow::Result<serde_json::Value> {
-    let path = args.relations.clone();
-    let Some(path) = path.or_else(|| slamkit_io::relations::beside_log(&args.log)) else {
-        return Ok(json!(null));
-    };
-    let scored = load_relations(&path).and_then(|relations| {
-        slamkit_eval::relations_error(&relations, trajectory)
-            .with_context(|| format!("scoring against {}", path.display()))
-    });
-    Ok(match scored {
-        Ok(stats) => json!({ "relations_file": path, "relations": stats }),
-        Err(e) => json!({ "relations_file": path, "error": error_chain(&e) }),
-    })
+pub(crate) fn relations_metrics(args: &LidarArgs, trajectory: &Trajectory) -> serde_json::Value {
+    run_report::relations_metrics(args.relations.as_deref(), &args.log, trajectory)
 }
 
 /// An explicit `--relations` file is read before the run, so a wrong path fails at once.

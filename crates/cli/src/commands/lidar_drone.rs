@@ -10,12 +10,11 @@
 //! `maps/layer_NNN.{pgm,yaml,png}`, `map.{pgm,yaml,png}`, `cloud.ply`, `report.json`, with
 //! `--method rbpf` `trajectory_pf.tum` and `map_pf.*`, and with `--save-map` the `.skmap`.
 
-use crate::commands::drone_files::{run_session, write_grids, write_ply};
 use crate::commands::lidar::{
     load_config, print_summary, read_log, relations_metrics, LidarArgs, Method, OUTPUTS,
 };
 use crate::output::{
-    ensure_fits_memory, finish, peak_rss_bytes, timings_json, write_grid, Unsuccessful,
+    ensure_fits_memory, finish, merge_json, peak_rss_bytes, progress_bar, Unsuccessful,
 };
 use serde_json::json;
 use slamkit_core::observation::time_ordered;
@@ -24,7 +23,8 @@ use slamkit_io::drone_csv::read_observations;
 use slamkit_io::output_folder::OutputFolder;
 use slamkit_io::write_tum;
 use slamkit_lidar::rbpf::RbpfConfig;
-use slamkit_map::OccupancyGridConfig;
+use slamkit_map::{save_grid_files, OccupancyGridConfig};
+use slamkit_slam::drone::demo::MERGED_CLOUD_COMMENT;
 use slamkit_slam::drone::map::DroneMap;
 use slamkit_slam::drone::particle_filter::drone_pf_config;
 use slamkit_slam::lidar::preflight::particle_maps_min_bytes;
@@ -71,49 +71,29 @@ pub fn run(args: &LidarArgs, ranges: &Path) -> anyhow::Result<()> {
     write_tum(&out.join("trajectory.tum"), &trajectory)?;
     let grid_config = OccupancyGridConfig::default();
     let grids = session.layer_grids(&log.scans, &session.map_from_world(), &grid_config)?;
-    let layer_files = write_grids(out, &grids)?;
-    write_ply(&out.join("cloud.ply"), &session.merged_cloud())?;
-    let pf = match (session.particle_filter(), session.pf_trajectory()) {
-        (Some(pf), Some(poses)) => {
-            write_tum(&out.join("trajectory_pf.tum"), &poses)?;
-            if let Some(grid) = pf.map() {
-                write_grid(grid, &out.join("map_pf"))?;
-            }
-            json!({ "stats": pf.stats(), "timings_ms": timings_json(pf.timings()) })
+    let layer_files = grids.write(out)?;
+    let cloud = session.merged_cloud();
+    slamkit_io::ply::write_ply(&out.join("cloud.ply"), &cloud, MERGED_CLOUD_COMMENT)?;
+    if let (Some(pf), Some(poses)) = (session.particle_filter(), session.pf_trajectory()) {
+        write_tum(&out.join("trajectory_pf.tum"), &poses)?;
+        if let Some(grid) = pf.map() {
+            save_grid_files(grid, &out.join("map_pf"))?;
         }
-        _ => json!(null),
-    };
+    }
     if let Some(path) = &args.save_map {
         session.save(path)?;
     }
-    let stats = session.stats();
-    let counts = session.frame_counts();
-    let report = json!({
+    let mut report = json!({
         "input": { "log": args.log, "ranges": ranges, "imu": args.imu, "flow": args.flow },
         "method": what,
         "map": args.localize.as_ref().or(args.continue_map.as_ref()),
-        "in_map": session.in_map_stats(),
-        "config": config,
-        "frames": {
-            "read": log.scans.len(),
-            "processed": counts.processed,
-            "skipped": counts.skipped,
-            "failed": counts.failed,
-            "odometry_rejected": session.odometry_rejected(),
-            "unreadable_lines": log.skipped.len(),
-        },
         "readings": readings.counts,
-        "stats": stats,
-        "layers": layer_files
-            .iter()
-            .map(|l| json!({ "layer": l.layer, "z_range_m": l.z_range_m, "scans": l.scans }))
-            .collect::<Vec<_>>(),
-        "pf": pf,
+        "layers": layer_files,
         "wall_seconds": started.elapsed().as_secs_f64(),
-        "timings_ms": timings_json(session.timings()),
         "peak_rss_bytes": peak_rss_bytes(),
-        "metrics": relations_metrics(args, &trajectory)?,
+        "metrics": relations_metrics(args, &trajectory),
     });
+    merge_json(&mut report, session.run_report(&log));
     finish(folder, &report)?;
     println!("{} height layers", layer_files.len());
     print_summary(&args.out, &report);
@@ -131,4 +111,20 @@ pub fn run(args: &LidarArgs, ranges: &Path) -> anyhow::Result<()> {
         ))
         .into()),
     }
+}
+
+/// Feeds `observations` (in time order) to `session`, with a progress bar over the scans.
+fn run_session(observations: Vec<Observation>, mut session: DroneSlam) -> DroneSlam {
+    let scans = observations
+        .iter()
+        .filter(|o| matches!(o, Observation::Scan(_)))
+        .count();
+    let bar = progress_bar(scans as u64, "drone-slam");
+    for observation in observations {
+        if session.push(observation).is_some() {
+            bar.inc(1);
+        }
+    }
+    bar.finish_and_clear();
+    session
 }

@@ -6,13 +6,14 @@
 use crate::commands::lidar::{
     load_config, print_summary, read_log, relations_metrics, LidarArgs, OUTPUTS,
 };
-use crate::output::{finish, peak_rss_bytes, progress_bar, timings_json, write_grid, Unsuccessful};
+use crate::output::{finish, peak_rss_bytes, progress_bar, Unsuccessful};
 use anyhow::Context;
 use serde_json::json;
 use slamkit_io::output_folder::OutputFolder;
 use slamkit_lidar::icp_slam::IcpSlamConfig;
 use slamkit_lidar::mcl::{run_mcl, MclConfig};
 use slamkit_map::load_map_yaml;
+use slamkit_map::save_grid_files;
 use slamkit_slam::lidar::preflight::ensure_usable;
 use std::path::Path;
 use std::time::Instant;
@@ -20,6 +21,10 @@ use std::time::Instant;
 /// Runs Monte Carlo localisation in the map `--localize` names.
 pub fn run_localization(args: &LidarArgs, map_path: &Path) -> anyhow::Result<()> {
     let started = Instant::now();
+    anyhow::ensure!(
+        args.record.is_none(),
+        "--record is not available for Monte Carlo localisation (--localize MAP.yaml) yet"
+    );
     let mut config = load_config::<MclConfig>(args, "mcl")?;
     if let Some(seed) = args.seed {
         config.seed = seed;
@@ -36,7 +41,7 @@ pub fn run_localization(args: &LidarArgs, map_path: &Path) -> anyhow::Result<()>
     bar.finish_and_clear();
 
     slamkit_io::trajectory_file::write_tum(&out.join("trajectory.tum"), &result.trajectory)?;
-    write_grid(&map, &out.join("map"))?;
+    save_grid_files(&map, &out.join("map"))?;
     let s = &result.stats;
     let report = json!({
         "input": args.log,
@@ -53,9 +58,9 @@ pub fn run_localization(args: &LidarArgs, map_path: &Path) -> anyhow::Result<()>
             "unreadable_lines": log.skipped.len(),
         },
         "wall_seconds": started.elapsed().as_secs_f64(),
-        "timings_ms": timings_json(&result.timings),
+        "timings_ms": result.timings.summary(),
         "peak_rss_bytes": peak_rss_bytes(),
-        "metrics": relations_metrics(args, &result.trajectory)?,
+        "metrics": relations_metrics(args, &result.trajectory),
     });
     finish(folder, &report)?;
     print_summary(&args.out, &report);

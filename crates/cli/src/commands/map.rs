@@ -65,28 +65,7 @@ fn info(file: &Path, as_json: bool) -> anyhow::Result<()> {
         println!("{}", serde_json::to_value(&info)?);
         return Ok(());
     }
-    let h = &info.header;
-    println!("{}", file.display());
-    println!(
-        "  format      {} (slamkit {})",
-        info.format_version, h.slamkit_version
-    );
-    println!("  rig         {}", h.rig);
-    println!("  created     {}", h.created_utc());
-    println!("  keyframes   {}", h.keyframes);
-    if let (Some(edges), Some(scans)) = (info.edges, info.scans) {
-        println!("  edges       {edges}");
-        println!("  scans       {scans}");
-    }
-    if let Some([x0, y0, x1, y1]) = h.extent_m {
-        println!(
-            "  extent      x {x0:.2} .. {x1:.2} m, y {y0:.2} .. {y1:.2} m ({:.1} × {:.1} m)",
-            x1 - x0,
-            y1 - y0
-        );
-    }
-    println!("  size        {:.2} MB", info.file_bytes as f64 / 1e6);
-    println!("  loaded in   {:.3} s", info.load_seconds);
+    print!("{info}");
     Ok(())
 }
 
@@ -150,7 +129,7 @@ fn merge(files: &[PathBuf], out: &Path) -> anyhow::Result<()> {
     report["input"] = serde_json::json!(files);
     report["config"] = serde_json::to_value(&config)?;
     report["wall_seconds"] = serde_json::json!(start.elapsed().as_secs_f64());
-    report["timings_ms"] = crate::output::timings_json(&outcome.timings);
+    report["timings_ms"] = serde_json::json!(outcome.timings.summary());
     report["peak_rss_bytes"] = serde_json::json!(crate::output::peak_rss_bytes());
     crate::output::finish(folder, &report)?;
     let unmerged = outcome.unmerged();

@@ -2,7 +2,6 @@
 
 pub mod bag;
 pub mod demo;
-pub mod drone_files;
 pub mod eval;
 pub mod lidar;
 pub mod lidar_drone;

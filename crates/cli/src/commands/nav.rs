@@ -13,19 +13,17 @@
 //! `metrics.max_cross_track_m`, ...).
 
 use crate::commands::plan::parse_xy;
-use crate::output::{finish, peak_rss_bytes, timings_json, Unsuccessful};
+use crate::output::{finish, peak_rss_bytes, Unsuccessful};
 use anyhow::Context;
 use nalgebra::Point2;
 use serde_json::json;
-use slamkit_core::Pose2;
 use slamkit_io::image_writer::save_rgb_png;
 use slamkit_io::output_folder::OutputFolder;
 use slamkit_io::write_tum;
 use slamkit_sim::World;
-use slamkit_slam::ground_robot::closed_loop::{run_nav_loop, FrameRecord, NavLoopConfig};
+use slamkit_slam::ground_robot::closed_loop::{run_nav_loop, NavLoopConfig};
 use slamkit_slam::profile::settings;
-use slamkit_vo::FrameStatus;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 /// The files `slamkit nav` writes in `--out`.
@@ -91,47 +89,22 @@ pub fn run(args: &NavArgs) -> anyhow::Result<()> {
     write_tum(&out.join("groundtruth.tum"), &outcome.ground_truth)?;
     save_rgb_png(&out.join("map.png"), &outcome.map_image(&config))?;
     outcome.map.save(&out.join("map.skmap"))?;
-    write_frames_csv(&out.join("frames.csv"), &outcome.frames)?;
+    let csv = out.join("frames.csv");
+    std::fs::write(&csv, outcome.frames_csv())
+        .with_context(|| format!("writing {}", csv.display()))?;
     let o = &outcome;
     let report = json!({
         "input": { "world": world_name, "seed": args.seed, "goal_m": [goal.x, goal.y] },
         "localisation": "RGB-D visual odometry",
         "config": config,
         "frames": o.camera_stats,
-        "metrics": {
-            "reached": o.reached,
-            "time_s": o.time_s,
-            "path_length_m": o.path_length_m,
-            "optimal_length_m": o.optimal.length_m,
-            "length_ratio": o.path_length_m / o.optimal.length_m.max(1e-9),
-            "max_cross_track_m": o.max_cross_track_m,
-            "final_distance_m": o.final_distance_m,
-            "localisation_error_mean_m": o.localisation_error_mean_m,
-            "localisation_error_max_m": o.localisation_error_max_m,
-            "plans": o.plans.len(),
-            "plan_failures": o.plan_failures,
-            "blocked_steps": o.blocked_steps,
-        },
-        "timings_ms": timings_json(&o.timings),
+        "metrics": o.metrics_json(),
+        "timings_ms": o.timings.summary(),
         "wall_seconds": started.elapsed().as_secs_f64(),
         "peak_rss_bytes": peak_rss_bytes(),
     });
     finish(folder, &report)?;
-    println!(
-        "{} after {:.1} s: driven {:.2} m (shortest {:.2} m), max cross-track {:.3} m, {:.2} m \
-         from the goal; written to {}",
-        if o.reached {
-            "goal reached"
-        } else {
-            "goal NOT reached"
-        },
-        o.time_s,
-        o.path_length_m,
-        o.optimal.length_m,
-        o.max_cross_track_m,
-        o.final_distance_m,
-        args.out.display()
-    );
+    println!("{}; written to {}", o.summary(), args.out.display());
     if !o.reached {
         return Err(Unsuccessful(format!(
             "the goal was not reached: {:.2} m from it after {:.1} s",
@@ -140,37 +113,4 @@ pub fn run(args: &NavArgs) -> anyhow::Result<()> {
         .into());
     }
     Ok(())
-}
-
-/// One line per camera frame: time, true and estimated `x, y, yaw` (m, degrees; empty when
-/// VO failed), VO's status, inliers, correspondences and failure reason.
-fn write_frames_csv(path: &Path, frames: &[FrameRecord]) -> anyhow::Result<()> {
-    let mut text = String::from(
-        "t_s,true_x_m,true_y_m,true_yaw_deg,est_x_m,est_y_m,est_yaw_deg,status,inliers,\
-         correspondences,reason\n",
-    );
-    let pose = |p: &Pose2| {
-        let t = p.translation.vector;
-        format!(
-            "{:.4},{:.4},{:.3}",
-            t.x,
-            t.y,
-            p.rotation.angle().to_degrees()
-        )
-    };
-    for f in frames {
-        let estimate = f.estimate.as_ref().map_or(",,".to_string(), pose);
-        let status = match &f.status {
-            FrameStatus::Initialised { features } => format!("initialised,{features},,"),
-            FrameStatus::Tracked {
-                inliers,
-                correspondences,
-            } => format!("tracked,{inliers},{correspondences},"),
-            FrameStatus::Failed(reason) => {
-                format!("failed,,,\"{}\"", format!("{reason:?}").replace('"', "'"))
-            }
-        };
-        text += &format!("{:.2},{},{estimate},{status}\n", f.t_s, pose(&f.truth));
-    }
-    std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))
 }

@@ -12,12 +12,12 @@
 //! 1.5 MB a frame). The same world, sensors, robot, duration and seed give the same files byte
 //! for byte.
 
-use crate::output::{finish, peak_rss_bytes, timings_json};
+use crate::output::{finish, peak_rss_bytes};
 use anyhow::Context;
 use serde_json::json;
 use slamkit_core::StageTimings;
 use slamkit_io::output_folder::OutputFolder;
-use slamkit_sim::recording::{write_recording, Sensor, KITTI_FOLDER, TUM_FOLDER};
+use slamkit_sim::recording::{counts_by_sensor, write_recording, Sensor, KITTI_FOLDER, TUM_FOLDER};
 use slamkit_sim::{RobotKind, SimConfig, Simulation, World};
 use slamkit_slam::profile::settings;
 use std::path::PathBuf;
@@ -71,31 +71,10 @@ const OUTPUTS: &[&str] = &[
     "imu.csv", "flow.csv", TUM_FOLDER, KITTI_FOLDER,
 ];
 
-const SENSOR_NAMES: &str = "lidar2d, range, imu, flow, rgbd, stereo";
-
-fn parse_sensors(names: &[String]) -> anyhow::Result<Vec<Sensor>> {
-    let mut sensors = Vec::new();
-    for name in names {
-        let sensor = match name.trim() {
-            "lidar2d" | "lidar" => Sensor::Lidar2d,
-            "range" => Sensor::Range,
-            "imu" => Sensor::Imu,
-            "flow" => Sensor::Flow,
-            "rgbd" => Sensor::Rgbd,
-            "stereo" => Sensor::Stereo,
-            other => anyhow::bail!("unknown sensor {other:?} (available: {SENSOR_NAMES})"),
-        };
-        if !sensors.contains(&sensor) {
-            sensors.push(sensor);
-        }
-    }
-    Ok(sensors)
-}
-
 /// Runs `slamkit sim`.
 pub fn run(args: &SimArgs) -> anyhow::Result<()> {
     let started = Instant::now();
-    let sensors = parse_sensors(&args.sensors)?;
+    let sensors = Sensor::parse_list(&args.sensors)?;
     let world = World::by_name_or_file(&args.world)?;
     let world_toml = toml::to_string(&world).context("serialising the world")?;
     let config = SimConfig {
@@ -122,19 +101,6 @@ pub fn run(args: &SimArgs) -> anyhow::Result<()> {
         .with_context(|| format!("writing world.toml in {}", args.out.display()))?;
     let mut timings = StageTimings::default();
     let written = write_recording(&sim, &sensors, duration_s, out, &mut timings)?;
-    let frames: serde_json::Map<String, serde_json::Value> = written
-        .iter()
-        .map(|w| {
-            (
-                w.sensor.name().into(),
-                json!(w
-                    .counts
-                    .iter()
-                    .cloned()
-                    .collect::<std::collections::BTreeMap<_, _>>()),
-            )
-        })
-        .collect();
     let report = json!({
         "input": {
             "world": args.world,
@@ -144,9 +110,9 @@ pub fn run(args: &SimArgs) -> anyhow::Result<()> {
         },
         "config": config,
         "duration_s": duration_s,
-        "frames": frames,
+        "frames": counts_by_sensor(&written),
         "wall_seconds": started.elapsed().as_secs_f64(),
-        "timings_ms": timings_json(&timings),
+        "timings_ms": timings.summary(),
         "peak_rss_bytes": peak_rss_bytes(),
     });
     finish(folder, &report)?;

@@ -3,7 +3,7 @@
 //! cloud and report written to the output folder, and with `--save-map` the keyframes as a
 //! `.skmap` file.
 
-use crate::output::{finish, peak_rss_bytes, progress_bar, timings_json};
+use crate::output::{finish, merge_json, peak_rss_bytes, progress_bar};
 use anyhow::Context;
 use serde_json::json;
 use slamkit_io::output_folder::OutputFolder;
@@ -23,10 +23,6 @@ const OUTPUTS: &[&str] = &[
     "cloud.ply",
     "report.json",
 ];
-
-/// Below this path length \[m\] the end-point error is not given as a percentage of the path:
-/// a centimetre over a few centimetres of path would read as tens of percent.
-const MIN_PATH_FOR_DRIFT_M: f64 = 1.0;
 
 /// Dataset folder layouts `slamkit vo` reads.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -169,34 +165,21 @@ pub fn run(args: &VoArgs) -> anyhow::Result<()> {
             .map(|gt| slamkit_slam::visual::check_closures(&closures, gt));
         json!({ "stats": stats, "closures": closures, "against_ground_truth": check })
     });
-    let metrics = match dataset.ground_truth() {
-        Some(gt) => {
-            dataset.write_ground_truth_tum(&out.join("groundtruth.tum"))?;
-            let m = evaluate(&result.trajectory, gt).context("scoring against the ground truth")?;
-            serde_json::to_value(m)?
-        }
-        None => json!(null),
-    };
+    let metrics = dataset.ground_truth().map(|gt| {
+        dataset.write_ground_truth_tum(&out.join("groundtruth.tum"))?;
+        evaluate(&result.trajectory, gt).context("scoring against the ground truth")
+    });
+    let metrics = metrics.transpose()?;
     map.write_ply(&out.join("cloud.ply"))?;
-    let s = &session.stats;
+    let mut frames = json!(session.stats);
+    merge_json(&mut frames, json!(result.stats));
     let report = json!({
         "input": args.dataset_dir,
         "format": format!("{format:?}"),
         "realtime": args.realtime,
         "profile": args.profile.as_deref().or_else(|| layout_profile(format)),
         "config": config,
-        "frames": {
-            "frames": result.stats.frames,
-            "read": result.stats.read,
-            "dropped": result.stats.dropped,
-            "skipped": result.stats.skipped,
-            "unmapped": s.unmapped,
-            "processed": s.processed,
-            "failed": s.failed,
-            "initialisations": s.initialisations,
-            "relocalisations": s.relocalisations,
-            "lost": s.lost,
-        },
+        "frames": frames,
         "map": {
             "points": map.len(),
             "dropped_points": map.dropped(),
@@ -205,14 +188,18 @@ pub fn run(args: &VoArgs) -> anyhow::Result<()> {
             "localised_in": args.localize,
         },
         "wall_seconds": started.elapsed().as_secs_f64(),
-        "timings_ms": timings_json(&timings),
+        "timings_ms": timings.summary(),
         "peak_rss_bytes": peak_rss_bytes(),
         "metrics": metrics,
         "loop_closure": loop_closure,
         "frame_status": result.frames,
     });
     finish(folder, &report)?;
-    print_summary(&args.out, &report);
+    print_summary(&report);
+    if let Some(metrics) = &metrics {
+        println!("{metrics}");
+    }
+    println!("outputs in {}", args.out.display());
     Ok(())
 }
 
@@ -245,7 +232,7 @@ fn load_config(args: &VoArgs, format: IoFormat) -> anyhow::Result<VoConfig> {
     )?)
 }
 
-fn print_summary(out: &Path, report: &serde_json::Value) {
+fn print_summary(report: &serde_json::Value) {
     let f = &report["frames"];
     println!(
         "vo: {} frames, {} processed, {} failed, {} dropped, {} skipped",
@@ -258,28 +245,4 @@ fn print_summary(out: &Path, report: &serde_json::Value) {
             t["p95_ms"].as_f64().unwrap_or(f64::NAN)
         );
     }
-    let m = &report["metrics"];
-    if !m.is_null() {
-        let value = |key: &str| m[key].as_f64().unwrap_or(f64::NAN);
-        let path_m = value("path_length_m");
-        let end_point = if path_m >= MIN_PATH_FOR_DRIFT_M {
-            let drift = value("end_point_drift_percent");
-            format!("end-point drift {drift:.2} % of {path_m:.1} m")
-        } else {
-            let error = value("end_point_error_m");
-            format!("end-point error {error:.3} m (the path, {path_m:.2} m, is too short for a percentage)")
-        };
-        println!(
-            "ATE RMSE {:.4} m, RPE RMSE {:.4} m, {end_point}",
-            m["ate"]["rmse"].as_f64().unwrap_or(f64::NAN),
-            m["rpe"]["rmse"].as_f64().unwrap_or(f64::NAN),
-        );
-        if m["frames_without_ground_truth"].as_u64().unwrap_or(0) > 0 {
-            println!(
-                "scored {} posed frames; {} without ground truth were not scored",
-                m["scored_frames"], m["frames_without_ground_truth"]
-            );
-        }
-    }
-    println!("outputs in {}", out.display());
 }

@@ -31,6 +31,7 @@ pub mod cdr;
 pub mod chunk;
 pub mod connection;
 pub mod definition;
+mod describe;
 pub mod info;
 pub mod mcap_file;
 pub mod messages;

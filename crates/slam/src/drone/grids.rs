@@ -10,8 +10,9 @@ use slamkit_core::pose::pose3_to_pose2;
 use slamkit_core::{LaserScan, Pose2, Pose3};
 use slamkit_lidar::icp_slam::ScanStatus;
 use slamkit_lidar::layers::LayerScanStatus;
-use slamkit_map::{OccupancyGrid, OccupancyGridConfig};
+use slamkit_map::{save_grid_files, OccupancyGrid, OccupancyGridConfig};
 use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
 
 /// One height layer's grid.
 #[derive(Debug, Clone)]
@@ -33,7 +34,46 @@ pub struct LayerGrids {
     pub layers: BTreeMap<i64, LayerGrid>,
 }
 
+/// A height layer's grid written to disk by [`LayerGrids::write`].
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct LayerFile {
+    /// Layer index.
+    pub layer: i64,
+    /// Bottom and top of the layer \[m\].
+    pub z_range_m: [f64; 2],
+    /// Scans inserted.
+    pub scans: usize,
+    /// The PNG image.
+    #[serde(skip)]
+    pub png: PathBuf,
+}
+
 impl LayerGrids {
+    /// Writes the grid of every scan as `out/map.{pgm,yaml,png}` and one per height layer as
+    /// `out/maps/layer_NNN.{pgm,yaml,png}`; returns the layers written, in layer order.
+    pub fn write(&self, out: &Path) -> Result<Vec<LayerFile>, SlamError> {
+        save_grid_files(&self.all, &out.join("map"))?;
+        let dir = out.join("maps");
+        std::fs::create_dir_all(&dir).map_err(|error| {
+            SlamError::Io(slamkit_io::IoError::Io {
+                path: dir.clone(),
+                error,
+            })
+        })?;
+        let mut files = Vec::new();
+        for (layer, l) in &self.layers {
+            let stem = dir.join(format!("layer_{layer:03}"));
+            save_grid_files(&l.grid, &stem)?;
+            files.push(LayerFile {
+                layer: *layer,
+                z_range_m: l.z_range_m,
+                scans: l.scans,
+                png: stem.with_extension("png"),
+            });
+        }
+        Ok(files)
+    }
+
     /// The layer grids alone, by layer index (what [`super::layer_choice`] takes).
     pub fn into_layer_maps(self) -> BTreeMap<i64, OccupancyGrid> {
         self.layers.into_iter().map(|(k, l)| (k, l.grid)).collect()

@@ -78,6 +78,32 @@ impl MapInfo {
     }
 }
 
+impl std::fmt::Display for MapInfo {
+    /// `slamkit map info`'s text: the file, then one aligned `label value` line per fact.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let h = &self.header;
+        writeln!(f, "{}", self.file.display())?;
+        let (format, version) = (&self.format_version, &h.slamkit_version);
+        writeln!(f, "  format      {format} (slamkit {version})")?;
+        writeln!(f, "  rig         {}", h.rig)?;
+        writeln!(f, "  created     {}", h.created_utc())?;
+        writeln!(f, "  keyframes   {}", h.keyframes)?;
+        if let (Some(edges), Some(scans)) = (self.edges, self.scans) {
+            writeln!(f, "  edges       {edges}")?;
+            writeln!(f, "  scans       {scans}")?;
+        }
+        if let Some([x0, y0, x1, y1]) = h.extent_m {
+            let (w, d) = (x1 - x0, y1 - y0);
+            writeln!(
+                f,
+                "  extent      x {x0:.2} .. {x1:.2} m, y {y0:.2} .. {y1:.2} m ({w:.1} × {d:.1} m)"
+            )?;
+        }
+        writeln!(f, "  size        {:.2} MB", self.file_bytes as f64 / 1e6)?;
+        writeln!(f, "  loaded in   {:.3} s", self.load_seconds)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -109,6 +135,9 @@ mod tests {
         let json = serde_json::to_value(&info).unwrap();
         assert_eq!(json["rig"], "stereo");
         assert_eq!(json["extent_m"][3], 1.0);
+        let text = info.to_string();
+        assert!(text.contains("  keyframes   3\n"), "{text}");
+        assert!(text.contains("(2.0 × 2.0 m)"), "{text}");
     }
 
     #[test]

@@ -1,0 +1,488 @@
+//! Recordings any viewer opens: a run written as an MCAP file (`--record FILE.mcap`) with
+//! Foxglove's well-known schemas in JSON encoding, so Foxglove Studio and the rerun viewer open
+//! it directly with no slamkit installed: scans (`foxglove.LaserScan`), poses
+//! (`foxglove.PoseInFrame`), the trajectory (`foxglove.PosesInFrame`), transforms
+//! (`foxglove.FrameTransform`) and the map as it grows (`foxglove.Grid`, ROS occupancy values:
+//! −1 unknown, 0 free, 100 occupied).
+//!
+//! The file is written beside its final name and renamed into place by [`Recorder::finish`], so
+//! a run that fails or is killed never leaves a half-written recording under that name.
+
+use crate::SlamError;
+use mcap::records::MessageHeader;
+use serde_json::{json, Value};
+use slamkit_core::{LaserScan, Pose3};
+use slamkit_map::grid_io::trinary_image;
+use slamkit_map::OccupancyGrid;
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+
+/// A Foxglove schema: its name and the JSON Schema of its messages (the fields slamkit fills).
+struct Schema {
+    name: &'static str,
+    properties: fn() -> Value,
+}
+
+fn time_schema() -> Value {
+    json!({ "type": "object", "properties": {
+        "sec": { "type": "integer" }, "nsec": { "type": "integer" } } })
+}
+
+fn pose_schema() -> Value {
+    let xyz = |keys: &[&str]| {
+        let props: serde_json::Map<String, Value> = keys
+            .iter()
+            .map(|k| (k.to_string(), json!({ "type": "number" })))
+            .collect();
+        json!({ "type": "object", "properties": props })
+    };
+    json!({ "type": "object", "properties": {
+        "position": xyz(&["x", "y", "z"]), "orientation": xyz(&["x", "y", "z", "w"]) } })
+}
+
+const LASER_SCAN: Schema = Schema {
+    name: "foxglove.LaserScan",
+    properties: || {
+        json!({
+            "timestamp": time_schema(), "frame_id": { "type": "string" }, "pose": pose_schema(),
+            "start_angle": { "type": "number" }, "end_angle": { "type": "number" },
+            "ranges": { "type": "array", "items": { "type": "number" } },
+            "intensities": { "type": "array", "items": { "type": "number" } },
+        })
+    },
+};
+
+const POSE_IN_FRAME: Schema = Schema {
+    name: "foxglove.PoseInFrame",
+    properties: || json!({ "timestamp": time_schema(), "frame_id": { "type": "string" }, "pose": pose_schema() }),
+};
+
+const POSES_IN_FRAME: Schema = Schema {
+    name: "foxglove.PosesInFrame",
+    properties: || {
+        json!({ "timestamp": time_schema(), "frame_id": { "type": "string" },
+                "poses": { "type": "array", "items": pose_schema() } })
+    },
+};
+
+const FRAME_TRANSFORM: Schema = Schema {
+    name: "foxglove.FrameTransform",
+    properties: || {
+        let p = pose_schema();
+        json!({
+            "timestamp": time_schema(), "parent_frame_id": { "type": "string" },
+            "child_frame_id": { "type": "string" },
+            "translation": p["properties"]["position"], "rotation": p["properties"]["orientation"],
+        })
+    },
+};
+
+const GRID: Schema = Schema {
+    name: "foxglove.Grid",
+    properties: || {
+        json!({
+            "timestamp": time_schema(), "frame_id": { "type": "string" }, "pose": pose_schema(),
+            "column_count": { "type": "integer" },
+            "cell_size": { "type": "object", "properties": {
+                "x": { "type": "number" }, "y": { "type": "number" } } },
+            "row_stride": { "type": "integer" }, "cell_stride": { "type": "integer" },
+            "fields": { "type": "array", "items": { "type": "object", "properties": {
+                "name": { "type": "string" }, "offset": { "type": "integer" },
+                "type": { "type": "integer" } } } },
+            "data": { "type": "string", "contentEncoding": "base64" },
+        })
+    },
+};
+
+/// Foxglove's `PackedElementField` numeric type of a signed byte.
+const INT8: u8 = 2;
+
+/// A run being recorded to an MCAP file.
+pub struct Recorder {
+    writer: mcap::Writer<BufWriter<File>>,
+    path: PathBuf,
+    partial: PathBuf,
+    schemas: BTreeMap<&'static str, u16>,
+    channels: BTreeMap<String, u16>,
+    counts: BTreeMap<String, u64>,
+    last_log_time_ns: u64,
+}
+
+impl Recorder {
+    /// Starts a recording that [`Recorder::finish`] puts at `path`.
+    ///
+    /// # Errors
+    /// [`SlamError::Recording`] when the file cannot be created.
+    pub fn create(path: &Path) -> Result<Self, SlamError> {
+        let mut name = path.file_name().unwrap_or_default().to_os_string();
+        name.push(".partial");
+        let partial = path.with_file_name(name);
+        let file = File::create(&partial).map_err(|e| recording(path, e))?;
+        let writer = mcap::WriteOptions::new()
+            .compression(None)
+            .profile("")
+            .create(BufWriter::new(file))
+            .map_err(|e| recording(path, e))?;
+        Ok(Self {
+            writer,
+            path: path.to_path_buf(),
+            partial,
+            schemas: BTreeMap::new(),
+            channels: BTreeMap::new(),
+            counts: BTreeMap::new(),
+            last_log_time_ns: 0,
+        })
+    }
+
+    /// A scan on `topic`, in `frame` (the robot's base: the laser's mounting is the scan's
+    /// pose in it), at the scan's time.
+    pub fn scan(&mut self, topic: &str, frame: &str, scan: &LaserScan) -> Result<(), SlamError> {
+        let n = scan.ranges_m.len();
+        let end = scan.angle_min_rad + scan.angle_increment_rad * n.saturating_sub(1) as f64;
+        // Foxglove draws no point for a range outside the valid band; JSON has no NaN.
+        let ranges: Vec<f64> = scan
+            .ranges_m
+            .iter()
+            .map(|&r| if r.is_finite() { r } else { 0.0 })
+            .collect();
+        let mount = slamkit_core::pose::pose2_to_pose3(&scan.base_from_laser);
+        let message = json!({
+            "timestamp": stamp(scan.timestamp), "frame_id": frame, "pose": pose_json(&mount),
+            "start_angle": scan.angle_min_rad, "end_angle": end, "ranges": ranges,
+            "intensities": [],
+        });
+        self.write(topic, &LASER_SCAN, scan.timestamp, &message)
+    }
+
+    /// A pose of `frame`'s child on `topic`, at time `t` \[s\].
+    pub fn pose(
+        &mut self,
+        topic: &str,
+        frame: &str,
+        t: f64,
+        pose: &Pose3,
+    ) -> Result<(), SlamError> {
+        let message = json!({ "timestamp": stamp(t), "frame_id": frame, "pose": pose_json(pose) });
+        self.write(topic, &POSE_IN_FRAME, t, &message)
+    }
+
+    /// Poses in `frame` on `topic` (a trajectory so far), at time `t` \[s\].
+    pub fn poses(
+        &mut self,
+        topic: &str,
+        frame: &str,
+        t: f64,
+        poses: &[Pose3],
+    ) -> Result<(), SlamError> {
+        let poses: Vec<Value> = poses.iter().map(pose_json).collect();
+        let message = json!({ "timestamp": stamp(t), "frame_id": frame, "poses": poses });
+        self.write(topic, &POSES_IN_FRAME, t, &message)
+    }
+
+    /// `parent_from_child` on `/tf`, at time `t` \[s\].
+    pub fn transform(
+        &mut self,
+        t: f64,
+        parent: &str,
+        child: &str,
+        parent_from_child: &Pose3,
+    ) -> Result<(), SlamError> {
+        let p = pose_json(parent_from_child);
+        let message = json!({
+            "timestamp": stamp(t), "parent_frame_id": parent, "child_frame_id": child,
+            "translation": p["position"], "rotation": p["orientation"],
+        });
+        self.write("/tf", &FRAME_TRANSFORM, t, &message)
+    }
+
+    /// The known part of `grid` on `topic` in `frame`, at time `t` \[s\].
+    pub fn grid(
+        &mut self,
+        topic: &str,
+        frame: &str,
+        t: f64,
+        grid: &OccupancyGrid,
+    ) -> Result<(), SlamError> {
+        let image = trinary_image(grid);
+        let width = image.width as usize;
+        // The image's top row is the grid's last: Foxglove's rows go up from the grid's pose.
+        let mut cells = Vec::with_capacity(image.pixels.len());
+        for row in image.pixels.chunks(width.max(1)).rev() {
+            cells.extend(row.iter().map(|&p| match p {
+                slamkit_map::grid_io::OCCUPIED_PIXEL => 100_i8 as u8,
+                slamkit_map::grid_io::FREE_PIXEL => 0,
+                _ => -1_i8 as u8,
+            }));
+        }
+        let origin = Pose3::translation(image.origin_m.x, image.origin_m.y, 0.0);
+        let message = json!({
+            "timestamp": stamp(t), "frame_id": frame, "pose": pose_json(&origin),
+            "column_count": width,
+            "cell_size": { "x": grid.resolution_m(), "y": grid.resolution_m() },
+            "row_stride": width, "cell_stride": 1,
+            "fields": [{ "name": "occupancy", "offset": 0, "type": INT8 }],
+            "data": base64(&cells),
+        });
+        self.write(topic, &GRID, t, &message)
+    }
+
+    /// Ends the recording: writes MCAP's summary and puts the file at its name; returns the
+    /// messages written per topic.
+    ///
+    /// # Errors
+    /// [`SlamError::Recording`] when the file cannot be completed or renamed.
+    pub fn finish(mut self) -> Result<BTreeMap<String, u64>, SlamError> {
+        let path = self.path.clone();
+        self.writer.finish().map_err(|e| recording(&path, e))?;
+        drop(self.writer);
+        std::fs::rename(&self.partial, &path).map_err(|e| recording(&path, e))?;
+        Ok(self.counts)
+    }
+
+    fn write(
+        &mut self,
+        topic: &str,
+        schema: &Schema,
+        t: f64,
+        message: &Value,
+    ) -> Result<(), SlamError> {
+        let path = self.path.clone();
+        let channel = match self.channels.get(topic) {
+            Some(&id) => id,
+            None => {
+                let schema_id = match self.schemas.get(schema.name) {
+                    Some(&id) => id,
+                    None => {
+                        let text = json!({
+                            "title": schema.name, "type": "object",
+                            "properties": (schema.properties)(),
+                        });
+                        let id = self
+                            .writer
+                            .add_schema(schema.name, "jsonschema", text.to_string().as_bytes())
+                            .map_err(|e| recording(&path, e))?;
+                        self.schemas.insert(schema.name, id);
+                        id
+                    }
+                };
+                let id = self
+                    .writer
+                    .add_channel(schema_id, topic, "json", &BTreeMap::new())
+                    .map_err(|e| recording(&path, e))?;
+                self.channels.insert(topic.to_string(), id);
+                id
+            }
+        };
+        let count = self.counts.entry(topic.to_string()).or_default();
+        // Log time is when the message was recorded, so it never goes back; a log whose
+        // timestamps step back (the Intel log's do, by milliseconds) keeps them in the message.
+        let time_ns = nanoseconds(t).max(self.last_log_time_ns);
+        self.last_log_time_ns = time_ns;
+        let header = MessageHeader {
+            channel_id: channel,
+            sequence: *count as u32,
+            log_time: time_ns,
+            publish_time: time_ns,
+        };
+        *count += 1;
+        let bytes = message.to_string();
+        self.writer
+            .write_to_known_channel(&header, bytes.as_bytes())
+            .map_err(|e| recording(&path, e))
+    }
+}
+
+/// How many times a lidar recording writes the whole map over a run (and once more at its
+/// end): each snapshot rebuilds the grid from every scan so far, so a fixed number of them costs
+/// a few passes over the log whatever its length.
+pub const MAP_SNAPSHOTS: usize = 10;
+
+/// A [`LidarSlam`](crate::LidarSlam) run being recorded: every scan with the pose it got (on
+/// `/scan`, `/pose` and `map → base_link` on `/tf`), and the map and the path so far on `/map`
+/// and `/path`, [`MAP_SNAPSHOTS`] times over the run and at its end.
+pub struct LidarRecording {
+    recorder: Recorder,
+    every: usize,
+    path: Vec<Pose3>,
+}
+
+impl LidarRecording {
+    /// Starts recording a run of `scans` scans to `path`.
+    ///
+    /// # Errors
+    /// [`SlamError::Recording`] when the file cannot be created.
+    pub fn create(path: &Path, scans: usize) -> Result<Self, SlamError> {
+        Ok(Self {
+            recorder: Recorder::create(path)?,
+            every: scans.div_ceil(MAP_SNAPSHOTS).max(1),
+            path: Vec::new(),
+        })
+    }
+
+    /// Records the last of `scans` (those pushed so far) and the `update` it gave.
+    ///
+    /// # Errors
+    /// [`SlamError::Recording`] when the file cannot be written, or the map not rebuilt.
+    pub fn push(
+        &mut self,
+        session: &crate::LidarSlam,
+        scans: &[LaserScan],
+        update: &crate::session::Update,
+    ) -> Result<(), SlamError> {
+        let Some(scan) = scans.last() else {
+            return Ok(());
+        };
+        self.recorder.scan("/scan", "base_link", scan)?;
+        if let Some(pose) = &update.pose {
+            self.recorder.pose("/pose", "map", update.timestamp, pose)?;
+            self.recorder
+                .transform(update.timestamp, "map", "base_link", pose)?;
+            self.path.push(*pose);
+        }
+        if scans.len() % self.every == 0 {
+            self.snapshot(session, scans, update.timestamp)?;
+        }
+        Ok(())
+    }
+
+    /// Records the final map and path, and ends the recording; returns the messages written
+    /// per topic.
+    ///
+    /// # Errors
+    /// [`SlamError::Recording`] when the file cannot be completed.
+    pub fn finish(
+        mut self,
+        session: &crate::LidarSlam,
+        scans: &[LaserScan],
+    ) -> Result<BTreeMap<String, u64>, SlamError> {
+        if let Some(last) = scans.last() {
+            self.snapshot(session, scans, last.timestamp)?;
+        }
+        self.recorder.finish()
+    }
+
+    fn snapshot(
+        &mut self,
+        session: &crate::LidarSlam,
+        scans: &[LaserScan],
+        t: f64,
+    ) -> Result<(), SlamError> {
+        let grid = session.output_grid(scans)?;
+        self.recorder.grid("/map", "map", t, &grid)?;
+        self.recorder.poses("/path", "map", t, &self.path)
+    }
+}
+
+fn recording(path: &Path, error: impl std::fmt::Display) -> SlamError {
+    SlamError::Recording {
+        path: path.to_path_buf(),
+        message: error.to_string(),
+    }
+}
+
+/// Time in nanoseconds; a negative or non-finite time (a damaged log) is clamped to 0.
+fn nanoseconds(t: f64) -> u64 {
+    if t.is_finite() && t > 0.0 {
+        (t * 1e9).round() as u64
+    } else {
+        0
+    }
+}
+
+fn stamp(t: f64) -> Value {
+    let ns = nanoseconds(t);
+    json!({ "sec": ns / 1_000_000_000, "nsec": ns % 1_000_000_000 })
+}
+
+fn pose_json(pose: &Pose3) -> Value {
+    let (t, q) = (pose.translation.vector, pose.rotation.quaternion());
+    json!({ "position": { "x": t.x, "y": t.y, "z": t.z },
+            "orientation": { "x": q.i, "y": q.j, "z": q.k, "w": q.w } })
+}
+
+/// Standard base64 (RFC 4648, padded), as JSON carries Foxglove's `bytes` fields.
+fn base64(bytes: &[u8]) -> String {
+    const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut text = String::with_capacity(bytes.len().div_ceil(3) * 4);
+    for chunk in bytes.chunks(3) {
+        let b = [
+            chunk[0],
+            *chunk.get(1).unwrap_or(&0),
+            *chunk.get(2).unwrap_or(&0),
+        ];
+        let n = (u32::from(b[0]) << 16) | (u32::from(b[1]) << 8) | u32::from(b[2]);
+        for i in 0..4 {
+            if i <= chunk.len() {
+                text.push(ALPHABET[(n >> (18 - 6 * i) & 63) as usize] as char);
+            } else {
+                text.push('=');
+            }
+        }
+    }
+    text
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn base64_matches_rfc_4648_test_vectors() {
+        let cases = [
+            ("", ""),
+            ("f", "Zg=="),
+            ("fo", "Zm8="),
+            ("foo", "Zm9v"),
+            ("foob", "Zm9vYg=="),
+            ("fooba", "Zm9vYmE="),
+            ("foobar", "Zm9vYmFy"),
+        ];
+        for (plain, encoded) in cases {
+            assert_eq!(base64(plain.as_bytes()), encoded, "{plain}");
+        }
+    }
+
+    #[test]
+    fn a_recording_appears_only_when_finished_and_counts_its_messages() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("run.mcap");
+        let mut recorder = Recorder::create(&path).unwrap();
+        let scan = LaserScan {
+            timestamp: 2.5,
+            angle_min_rad: -1.0,
+            angle_increment_rad: 0.5,
+            ranges_m: vec![1.0, f64::NAN, 2.0, 3.0, 4.0],
+            max_range_m: 10.0,
+            odometry: None,
+            base_from_laser: slamkit_core::Pose2::identity(),
+        };
+        recorder.scan("/scan", "base_link", &scan).unwrap();
+        recorder
+            .pose("/pose", "map", 2.5, &Pose3::identity())
+            .unwrap();
+        recorder
+            .pose("/pose", "map", 2.6, &Pose3::identity())
+            .unwrap();
+        assert!(!path.exists());
+        let counts = recorder.finish().unwrap();
+        assert_eq!(counts["/scan"], 1);
+        assert_eq!(counts["/pose"], 2);
+        let bytes = std::fs::read(&path).unwrap();
+        let messages: Vec<_> = mcap::MessageStream::new(&bytes)
+            .unwrap()
+            .map(|m| m.unwrap())
+            .collect();
+        assert_eq!(messages.len(), 3);
+        let scan_json: Value = serde_json::from_slice(&messages[0].data).unwrap();
+        assert_eq!(messages[0].channel.topic, "/scan");
+        assert_eq!(
+            messages[0].channel.schema.as_ref().unwrap().name,
+            "foxglove.LaserScan"
+        );
+        assert_eq!(scan_json["end_angle"], 1.0);
+        assert_eq!(scan_json["ranges"][1], 0.0);
+        assert_eq!(scan_json["timestamp"]["nsec"], 500_000_000);
+    }
+}
