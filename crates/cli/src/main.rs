@@ -26,7 +26,7 @@ enum Command {
     Vo(commands::vo::VoArgs),
     /// 2D lidar SLAM (ICP or particle filter), or localisation in / continuation of a saved
     /// map, on a CARMEN log or a ROS 1 bag.
-    Lidar(commands::lidar::LidarArgs),
+    Lidar(Box<commands::lidar::LidarArgs>),
     /// What a ROS 1 bag holds: topics, types, counts, time span.
     Bag(commands::bag::BagArgs),
     /// Inspect and export saved maps (`.skmap`).
