@@ -266,10 +266,12 @@ def main():
     out.mkdir(parents=True, exist_ok=True)
     failures = []
 
+    began = time.monotonic()
     prefix_bag = out / "prefix.bag"
     prefix_bag.unlink(missing_ok=True)
     messages = read_prefix(args.bag, args.scans, prefix_bag)
     n_scans = sum(1 for t, _, _ in messages if t == "/scan")
+    read_seconds = time.monotonic() - began
 
     node = subprocess.Popen(
         [args.slamkit, "ros2", "lidar", "--idle-exit", "3", "--out", str(out / "node")],
@@ -396,7 +398,9 @@ def main():
     summary = {
         "scans": n_scans,
         "rate": args.rate,
+        "read_seconds": round(read_seconds, 1),
         "play_seconds": round(play_seconds, 1),
+        "total_seconds": round(time.monotonic() - began, 1),
         "poses": len(poses),
         "map_odom_transforms": len(map_odom),
         "maps": len(maps),

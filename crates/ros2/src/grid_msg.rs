@@ -80,6 +80,7 @@ pub fn image_msg(
 mod tests {
     use super::*;
     use nalgebra::Point2;
+    use slamkit_map::occupancy_grid::CellIndex;
     use slamkit_map::{Occupancy, OccupancyGridConfig};
 
     #[test]
@@ -94,15 +95,24 @@ mod tests {
         let (w, h) = (msg.info.width as usize, msg.info.height as usize);
         assert_eq!((w, h), (4, 3));
         assert_eq!(msg.data.len(), w * h);
-        // cell (i, j) covers origin + (i, j)·res: the world point of each set cell maps back
-        let at = |x: f64, y: f64| {
-            let i = ((x - msg.info.origin.position.x) / f64::from(msg.info.resolution)) as usize;
-            let j = ((y - msg.info.origin.position.y) / f64::from(msg.info.resolution)) as usize;
+        // message cell (i, j) covers origin + [i, i+1)·res × [j, j+1)·res: each grid cell's
+        // centre lands in the message cell that holds its value
+        let at = |cell: CellIndex| {
+            let c = grid.cell_center_m(cell);
+            let r = f64::from(msg.info.resolution);
+            let i = ((c.x - msg.info.origin.position.x) / r).floor() as usize;
+            let j = ((c.y - msg.info.origin.position.y) / r).floor() as usize;
             msg.data[j * w + i]
         };
         assert_eq!(grid.occupancy(a), Some(Occupancy::Occupied));
-        assert_eq!(at(0.0, 0.0), OCCUPIED);
-        assert_eq!(at(3.0 * res, 2.0 * res), FREE);
-        assert_eq!(at(res, res), UNKNOWN);
+        assert_eq!(at(a), OCCUPIED);
+        assert_eq!(at(b), FREE);
+        assert_eq!(
+            at(CellIndex {
+                x: a.x + 1,
+                y: a.y + 1
+            }),
+            UNKNOWN
+        );
     }
 }

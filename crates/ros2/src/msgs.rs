@@ -21,21 +21,31 @@ pub struct Time {
 }
 
 impl Time {
-    /// The nearest time to `seconds` (saturated to the type's range).
+    /// The nearest time to `seconds` (saturated to the type's range). An `f64` holds a
+    /// present-day stamp to about 0.1 µs, so the node publishes the stamps it received, not
+    /// these.
     ///
     /// ```
     /// use slamkit_ros2::msgs::Time;
+    /// let t = Time::from_secs_f64(70.29);
+    /// assert_eq!((t.sec, t.nanosec), (70, 290_000_000));
     /// let t = Time::from_secs_f64(976052857.337284);
-    /// assert_eq!((t.sec, t.nanosec), (976052857, 337284000));
+    /// assert_eq!(t.sec, 976052857);
     /// assert!((t.as_secs_f64() - 976052857.337284).abs() < 1e-9);
     /// ```
     pub fn from_secs_f64(seconds: f64) -> Self {
-        let nanos = (seconds * 1e9).round();
-        let nanos = nanos.clamp(i32::MIN as f64 * 1e9, i32::MAX as f64 * 1e9 + 999_999_999.0);
-        let nanos = nanos as i64;
+        let seconds = seconds.clamp(f64::from(i32::MIN), f64::from(i32::MAX));
+        let whole = seconds.floor();
+        let nanos = ((seconds - whole) * 1e9).round() as u32;
+        // a fraction that rounds up to a whole second carries
+        let (sec, nanosec) = if nanos >= 1_000_000_000 {
+            (whole + 1.0, nanos - 1_000_000_000)
+        } else {
+            (whole, nanos)
+        };
         Self {
-            sec: nanos.div_euclid(1_000_000_000) as i32,
-            nanosec: nanos.rem_euclid(1_000_000_000) as u32,
+            sec: sec.min(f64::from(i32::MAX)) as i32,
+            nanosec,
         }
     }
 
@@ -382,6 +392,65 @@ mod tests {
         let t = Time::from_secs_f64(-0.25);
         assert_eq!((t.sec, t.nanosec), (-1, 750_000_000));
         assert!(t.to_ros_time().is_err());
+    }
+
+    /// CDR as RustDDS writes it (little endian, after the 4-byte encapsulation header ROS 2
+    /// messages carry in bags).
+    fn cdr<T: Serialize>(value: &T) -> Vec<u8> {
+        use ros2_client::dds::rustdds::serialization::{
+            to_writer_with_rep_id, RepresentationIdentifier,
+        };
+        let mut bytes = vec![0, 1, 0, 0];
+        to_writer_with_rep_id(&mut bytes, value, RepresentationIdentifier::CDR_LE).unwrap();
+        bytes
+    }
+
+    /// The serde layouts are the ROS 2 definitions: what RustDDS writes from them, the bag
+    /// reader's CDR decoder (checked against rosbags-written bags) reads back field for field.
+    #[test]
+    fn serde_layouts_decode_with_the_bag_readers_cdr_decoder() {
+        use slamkit_io::bag::messages::RosMessage;
+        let scan = LaserScan {
+            header: Header {
+                stamp: Time {
+                    sec: 976052857,
+                    nanosec: 337530017,
+                },
+                frame_id: "laser".into(),
+            },
+            angle_min: -1.57,
+            angle_max: 1.57,
+            angle_increment: 0.0175,
+            time_increment: 0.0,
+            scan_time: 0.2,
+            range_min: 0.1,
+            range_max: 81.9,
+            ranges: vec![1.0, 2.5, 81.9],
+            intensities: vec![],
+        };
+        let decoded = bag::LaserScanMsg::decode_cdr(&cdr(&scan)).unwrap();
+        assert_eq!(decoded, scan.to_bag().unwrap());
+        let mut odom = Odometry::default();
+        odom.header.frame_id = "odom".into();
+        odom.child_frame_id = "base_link".into();
+        odom.pose.pose.position.y = -3.25;
+        odom.pose.covariance.0[7] = 0.01;
+        odom.twist.twist.angular.z = 0.5;
+        odom.twist.covariance.0[35] = 0.2;
+        let decoded = bag::OdometryMsg::decode_cdr(&cdr(&odom)).unwrap();
+        assert_eq!(decoded, odom.to_bag().unwrap());
+        let tf = TfMessage {
+            transforms: vec![
+                TransformStamped {
+                    header: Header::default(),
+                    child_frame_id: "laser".into(),
+                    transform: Pose::default(),
+                };
+                2
+            ],
+        };
+        let decoded = bag::TfMessageMsg::decode_cdr(&cdr(&tf)).unwrap();
+        assert_eq!(decoded, tf.to_bag().unwrap());
     }
 
     #[test]

@@ -20,13 +20,13 @@
 
 use crate::lidar_node::{LidarNodeConfig, NodeMode};
 use crate::Ros2Error;
-use serde::Deserialize;
+use serde::de::DeserializeOwned;
 use slamkit_slam::LidarSlamConfig;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 /// The parameters slamkit reads; each is optional.
-#[derive(Debug, Clone, Default, PartialEq, Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct RosParams {
     /// The map frame.
     pub map_frame: Option<String>,
@@ -49,14 +49,21 @@ pub struct RosParams {
     /// Seconds between map redraws.
     pub map_update_interval: Option<f64>,
     /// Everything else in the file.
-    #[serde(flatten)]
     pub other: BTreeMap<String, serde_yaml::Value>,
 }
 
-#[derive(Deserialize)]
-struct NodeBlock {
-    #[serde(rename = "ros__parameters")]
-    parameters: RosParams,
+/// Takes parameter `name` out of `block`, read as a `T` (the error names it).
+fn take<T: DeserializeOwned>(
+    block: &mut BTreeMap<String, serde_yaml::Value>,
+    name: &str,
+) -> Result<Option<T>, Ros2Error> {
+    block
+        .remove(name)
+        .map(|v| {
+            serde_yaml::from_value(v)
+                .map_err(|e| Ros2Error::Config(format!("parameter {name}: {e}")))
+        })
+        .transpose()
 }
 
 impl RosParams {
@@ -97,9 +104,30 @@ impl RosParams {
             ))
         })?;
         let block = blocks.remove(&key).unwrap_or_default();
-        let block: NodeBlock = serde_yaml::from_value(block)
-            .map_err(|e| Ros2Error::Config(format!("parameter file, block {key}: {e}")))?;
-        Ok(block.parameters)
+        let mut block = match block {
+            serde_yaml::Value::Mapping(mut m) => m.remove("ros__parameters"),
+            _ => None,
+        }
+        .map(serde_yaml::from_value::<BTreeMap<String, serde_yaml::Value>>)
+        .transpose()
+        .map_err(|e| Ros2Error::Config(format!("parameter file, block {key}: {e}")))?
+        .ok_or_else(|| {
+            Ros2Error::Config(format!("parameter file, block {key}: no ros__parameters"))
+        })?;
+        let b = &mut block;
+        Ok(Self {
+            map_frame: take(b, "map_frame")?,
+            odom_frame: take(b, "odom_frame")?,
+            base_frame: take(b, "base_frame")?,
+            scan_topic: take(b, "scan_topic")?,
+            odom_topic: take(b, "odom_topic")?,
+            mode: take(b, "mode")?,
+            map_file_name: take(b, "map_file_name")?,
+            resolution: take(b, "resolution")?,
+            max_laser_range: take(b, "max_laser_range")?,
+            map_update_interval: take(b, "map_update_interval")?,
+            other: block,
+        })
     }
 
     /// Names of the parameters slamkit does not use, sorted.
