@@ -5,6 +5,7 @@ read by PyPI `rosbags`, in record-time order) as ROS 2 messages (`/scan`, `/odom
 into `slamkit ros2 lidar` at a multiple of real time, and receives `/map`, `/tf` and `/pose`.
 The same messages, written by `rosbags` into a ROS 1 bag, are the file run (`slamkit lidar`).
 Checks: every scan processed (none dropped), `/map` a valid trinary OccupancyGrid in `map`,
+the map saved on a `std_msgs/String` sent to `/slamkit/save_map`,
 `map -> odom` on `/tf` for every scan, one `/pose` per scan with the scan's stamp, and the
 node's trajectory equal to the file run's within 1e-3 m. Measures the latency from writing a
 scan to receiving its `/pose` (median, p95), as Cyclone sees it.
@@ -160,6 +161,11 @@ class OccupancyGrid(IdlStruct, typename="nav_msgs::msg::dds_::OccupancyGrid_"):
     data: sequence[int8] = field(default_factory=list)
 
 
+@dataclass
+class String(IdlStruct, typename="std_msgs::msg::dds_::String_"):
+    data: str = ""
+
+
 def header(h):
     return Header(Time(h.stamp.sec, h.stamp.nanosec), h.frame_id)
 
@@ -296,6 +302,9 @@ def main():
     w_scan = DataWriter(dp, Topic(dp, "rt/scan", LaserScan), qos=sensor)
     w_odom = DataWriter(dp, Topic(dp, "rt/odom", Odometry), qos=sensor)
     w_static = DataWriter(dp, Topic(dp, "rt/tf_static", TFMessage), qos=latched)
+    w_save = DataWriter(dp, Topic(dp, "rt/slamkit/save_map", String),
+                        qos=Qos(Policy.Reliability.Reliable(second), Policy.Durability.Volatile,
+                                Policy.History.KeepLast(10), xcdr1))
     got_map, got_tf, got_pose = Received(), Received(), Received()
     # Kept referenced: a reader that is garbage-collected is deleted.
     readers = [
@@ -308,6 +317,7 @@ def main():
     deadline = time.monotonic() + 30
     while not (w_scan.get_matched_subscriptions() and w_odom.get_matched_subscriptions()
                and w_static.get_matched_subscriptions()
+               and w_save.get_matched_subscriptions()
                and all(r.get_matched_publications() for r in readers)):
         if time.monotonic() > deadline or node.poll() is not None:
             print("slamkit's readers were not discovered within 30 s", file=sys.stderr)
@@ -333,6 +343,12 @@ def main():
         else:
             w_static.write(msg)
     play_seconds = time.monotonic() - start_wall
+    # Save the map while the node runs (before its idle exit).
+    saved = out / "saved"
+    for f in ("office.skmap", "office.pgm", "office.yaml"):
+        (saved / f).unlink(missing_ok=True)
+    saved.mkdir(exist_ok=True)
+    w_save.write(String(str((saved / "office").resolve())))
 
     try:
         node.wait(timeout=120)
@@ -375,6 +391,10 @@ def main():
         occupied = sum(1 for v in m.data if v == 100)
         if occupied == 0:
             failures.append("/map has no occupied cell")
+
+    missing = [f for f in ("office.skmap", "office.pgm", "office.yaml") if not (saved / f).is_file()]
+    if missing:
+        failures.append(f"save_map: {', '.join(missing)} not written")
 
     # The node's trajectory against the file run's.
     worst = float("nan")
