@@ -5,7 +5,8 @@ read by PyPI `rosbags`, in record-time order) as ROS 2 messages (`/scan`, `/odom
 into `slamkit ros2 lidar` at a multiple of real time, and receives `/map`, `/tf` and `/pose`.
 The same messages, written by `rosbags` into a ROS 1 bag, are the file run (`slamkit lidar`).
 Checks: every scan processed (none dropped), `/map` a valid trinary OccupancyGrid in `map`,
-the map saved on a `std_msgs/String` sent to `/slamkit/save_map`,
+the map saved on a `std_msgs/String` sent to `/slamkit/save_map`, and a second node localising
+in the file run's map from an unknown start (the log from its 1000th scan),
 `map -> odom` on `/tf` for every scan, one `/pose` per scan with the scan's stamp, and the
 node's trajectory equal to the file run's within 1e-3 m. Measures the latency from writing a
 scan to receiving its `/pose` (median, p95), as Cyclone sees it.
@@ -166,6 +167,15 @@ class String(IdlStruct, typename="std_msgs::msg::dds_::String_"):
     data: str = ""
 
 
+CHILDREN = []  # the slamkit processes started
+
+
+def start(command, log):
+    p = subprocess.Popen(command, stdout=open(log, "w"), stderr=subprocess.STDOUT)
+    CHILDREN.append(p)
+    return p
+
+
 def header(h):
     return Header(Time(h.stamp.sec, h.stamp.nanosec), h.frame_id)
 
@@ -246,6 +256,75 @@ class Received(Listener):
                     self.samples.append((now, s))
 
 
+def play(messages, rate, w_scan, w_odom, w_static):
+    """Writes the messages in order at `rate` times their record times (never backwards);
+    returns the (monotonic time, stamp) of each scan written, and the seconds taken."""
+    written = []
+    start_wall, start_rec, last_due = time.monotonic(), messages[0][1], 0.0
+    for topic, rec, msg in messages:
+        due = max(last_due, (rec - start_rec) * 1e-9 / rate)
+        last_due = due
+        wait = start_wall + due - time.monotonic()
+        if wait > 0:
+            time.sleep(wait)
+        if topic == "/scan":
+            w_scan.write(msg)
+            written.append((time.monotonic(), (msg.header.stamp.sec, msg.header.stamp.nanosec)))
+        elif topic == "/odom":
+            w_odom.write(msg)
+        else:
+            w_static.write(msg)
+    return written, time.monotonic() - start_wall
+
+
+def localise(args, out, messages, writers, failures):
+    """A second node localises in the file run's map from an unknown start: the log from its
+    1000th scan on (500 scans at 4x the rate), matched against the file run's poses."""
+    before = [set(w.get_matched_subscriptions()) for w in writers]
+    node = start(
+        [args.slamkit, "ros2", "lidar", "--localize", str(out / "file" / "map.skmap"),
+         "--idle-exit", "3", "--out", str(out / "localize")],
+        out / "localize.log",
+    )
+    deadline = time.monotonic() + 30
+    while not all(set(w.get_matched_subscriptions()) - b for w, b in zip(writers, before)):
+        if time.monotonic() > deadline or node.poll() is not None:
+            failures.append("localisation node not discovered within 30 s")
+            node.kill()
+            return None
+        time.sleep(0.05)
+    time.sleep(0.5)
+    scans = [i for i, m in enumerate(messages) if m[0] == "/scan"]
+    tail = [m for m in messages[scans[1000]:scans[1500]] if m[0] != "/tf_static"]
+    static = [m for m in messages if m[0] == "/tf_static"]
+    play(static + tail, args.rate * 4, *writers)
+    try:
+        node.wait(timeout=120)
+    except subprocess.TimeoutExpired:
+        node.kill()
+        failures.append("the localisation node did not finish")
+        return None
+    try:
+        report = json.loads((out / "localize" / "report.json").read_text())
+        first_fix = report["session"]["first_fix_scan"]
+        file_poses = {round(r[0], 6): r for r in read_tum(out / "file" / "trajectory.tum")}
+        errors = [math.hypot(r[1] - f[1], r[2] - f[2])
+                  for r in read_tum(out / "localize" / "trajectory.tum")
+                  if (f := file_poses.get(round(r[0], 6)))]
+    except (OSError, KeyError, ValueError) as e:
+        failures.append(f"localisation outputs: {e}")
+        return None
+    if first_fix is None or not errors:
+        failures.append("the localisation node never found the robot")
+        return None
+    result = {"first_fix_scan": first_fix, "poses": len(errors),
+              "median_error_m": round(statistics.median(errors), 4),
+              "max_error_m": round(max(errors), 4)}
+    if not result["median_error_m"] <= 0.05:
+        failures.append(f"localised poses {result['median_error_m']} m from the file run's")
+    return result
+
+
 def read_tum(path):
     rows = []
     for line in Path(path).read_text().splitlines():
@@ -279,13 +358,12 @@ def main():
     n_scans = sum(1 for t, _, _ in messages if t == "/scan")
     read_seconds = time.monotonic() - began
 
-    node = subprocess.Popen(
+    node = start(
         [args.slamkit, "ros2", "lidar", "--idle-exit", "3", "--out", str(out / "node")],
-        stdout=open(out / "node.log", "w"), stderr=subprocess.STDOUT,
+        out / "node.log",
     )
-    file_run = subprocess.Popen(
-        [args.slamkit, "lidar", str(prefix_bag), "--out", str(out / "file")],
-        stdout=open(out / "file.log", "w"), stderr=subprocess.STDOUT,
+    file_run = start(
+        [args.slamkit, "lidar", str(prefix_bag), "--out", str(out / "file")], out / "file.log"
     )
 
     dp = DomainParticipant(0)
@@ -326,23 +404,7 @@ def main():
         time.sleep(0.05)
     time.sleep(0.5)
 
-    # Played in record-time order; the clock follows the record times (never backwards).
-    written = []  # (monotonic time, stamp) of each scan
-    start_wall, start_rec, last_due = time.monotonic(), messages[0][1], 0.0
-    for topic, rec, msg in messages:
-        due = max(last_due, (rec - start_rec) * 1e-9 / args.rate)
-        last_due = due
-        wait = start_wall + due - time.monotonic()
-        if wait > 0:
-            time.sleep(wait)
-        if topic == "/scan":
-            w_scan.write(msg)
-            written.append((time.monotonic(), (msg.header.stamp.sec, msg.header.stamp.nanosec)))
-        elif topic == "/odom":
-            w_odom.write(msg)
-        else:
-            w_static.write(msg)
-    play_seconds = time.monotonic() - start_wall
+    written, play_seconds = play(messages, args.rate, w_scan, w_odom, w_static)
     # Save the map while the node runs (before its idle exit).
     saved = out / "saved"
     for f in ("office.skmap", "office.pgm", "office.yaml"):
@@ -415,6 +477,8 @@ def main():
         failures.append(f"outputs: {e}")
         report = {}
 
+    localised = None if failures else localise(args, out, messages, (w_scan, w_odom, w_static), failures)
+
     summary = {
         "scans": n_scans,
         "rate": args.rate,
@@ -428,6 +492,7 @@ def main():
         "latency_ms_median": round(statistics.median(latencies), 2) if latencies else None,
         "latency_ms_p95": round(percentile(latencies, 0.95), 2) if latencies else None,
         "node_latency_ms": report.get("node_latency_ms"),
+        "localisation": localised,
         "failures": failures,
     }
     (out / "summary.json").write_text(json.dumps(summary, indent=1))
@@ -435,5 +500,15 @@ def main():
     return 1 if failures else 0
 
 
+def run():
+    """main(), and no slamkit process left running whatever happens."""
+    try:
+        return main()
+    finally:
+        for p in CHILDREN:
+            if p.poll() is None:
+                p.kill()
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run())
