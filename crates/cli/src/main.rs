@@ -39,6 +39,8 @@ enum Command {
     Sim(commands::sim::SimArgs),
     /// Closed loop in the simulator: localise, map, plan and drive to a goal.
     Nav(commands::nav::NavArgs),
+    /// A ROS 2 node (no ROS install needed): live topics in, map, tf and pose out.
+    Ros2(commands::ros2::Ros2Args),
 }
 
 fn main() -> ExitCode {
@@ -53,6 +55,7 @@ fn main() -> ExitCode {
         Command::Plan(args) => commands::plan::run(args),
         Command::Sim(args) => commands::sim::run(args),
         Command::Nav(args) => commands::nav::run(args),
+        Command::Ros2(args) => commands::ros2::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

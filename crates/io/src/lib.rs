@@ -43,7 +43,7 @@ pub mod kitti;
 pub mod kitti_writer;
 pub mod layout;
 pub mod mrpt_text;
-mod odometry_bracket;
+pub mod odometry_bracket;
 pub mod output_folder;
 pub mod ply;
 pub mod redwood;

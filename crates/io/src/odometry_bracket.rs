@@ -2,18 +2,19 @@
 //! readings around each scan in file order: interpolated by timestamp when the scan's time lies
 //! between theirs, else the nearer in time. Shared by the CARMEN reader (`ODOM` lines) and the
 //! ROS 1 bag reader (`nav_msgs/Odometry` messages), so a log and the bag it was converted from
-//! give the same scans.
+//! give the same scans. The ROS 2 node ties live scans to odometry by the same rule, in
+//! publication order ([`odometry_at`]).
 
 use slamkit_core::pose::wrap_angle;
 use slamkit_core::{LaserScan, Pose2};
 
 /// One odometry reading.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct OdomSample {
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OdomSample {
     /// Time of the reading \[s\].
-    pub(crate) timestamp: f64,
+    pub timestamp: f64,
     /// `odom_from_base` at that time.
-    pub(crate) pose: Pose2,
+    pub pose: Pose2,
 }
 
 /// Ties scans without odometry of their own to the ODOM lines around them in file order.
@@ -51,9 +52,20 @@ impl OdometryBracket {
     }
 }
 
-/// Odometry at time `t` from the samples just before and after it in file order: interpolated
-/// when `t` lies between their times, else the nearer in time (or the only one).
-fn odometry_at(t: f64, before: Option<OdomSample>, after: Option<OdomSample>) -> Option<Pose2> {
+/// Odometry at time `t` from the samples just before and after it in file order (or, live, in
+/// publication order): interpolated when `t` lies between their times, else the nearer in time
+/// (or the only one).
+///
+/// ```
+/// use slamkit_core::Pose2;
+/// use slamkit_io::odometry_bracket::{odometry_at, OdomSample};
+/// let a = OdomSample { timestamp: 1.0, pose: Pose2::new([0.0, 0.0].into(), 0.0) };
+/// let b = OdomSample { timestamp: 2.0, pose: Pose2::new([1.0, 0.0].into(), 0.0) };
+/// let mid = odometry_at(1.25, Some(a), Some(b)).unwrap();
+/// assert!((mid.translation.x - 0.25).abs() < 1e-12);
+/// assert_eq!(odometry_at(5.0, Some(a), None), Some(a.pose));
+/// ```
+pub fn odometry_at(t: f64, before: Option<OdomSample>, after: Option<OdomSample>) -> Option<Pose2> {
     match (before, after) {
         (Some(a), Some(b)) if a.timestamp <= t && t <= b.timestamp && a.timestamp < b.timestamp => {
             // Halved so that stamps near ±f64::MAX cannot overflow to inf / inf = NaN.

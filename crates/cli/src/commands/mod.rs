@@ -9,5 +9,6 @@ pub mod lidar_mcl;
 pub mod map;
 pub mod nav;
 pub mod plan;
+pub mod ros2;
 pub mod sim;
 pub mod vo;

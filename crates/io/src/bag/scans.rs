@@ -241,8 +241,7 @@ struct Collect {
     log: CarmenLog,
     bracket: OdometryBracket,
     message_no: usize,
-    /// `/tf_static`: child frame → (parent frame, `parent_from_child`).
-    statics: HashMap<String, (String, Pose3)>,
+    statics: StaticTree,
     base_frame: Option<String>,
     laser_frame: Option<String>,
 }
@@ -259,37 +258,60 @@ impl Collect {
 
     fn odom(&mut self, conn: &Connection, bytes: &[u8]) -> Result<(), String> {
         let msg = OdometryMsg::decode_from(conn, bytes).map_err(|e| e.to_string())?;
-        let pose = msg
-            .pose
-            .to_isometry()
-            .ok_or("odometry pose is not finite or its quaternion is zero")?;
-        let yaw = pose.rotation.euler_angles().2;
+        let sample = odom_sample(&msg)?;
         self.base_frame.get_or_insert(msg.child_frame_id);
         self.log.odometry_lines += 1;
-        let sample = OdomSample {
-            timestamp: msg.header.stamp.as_secs_f64(),
-            pose: Pose2::new(pose.translation.vector.xy(), yaw),
-        };
         self.bracket.add_odom(&mut self.log.scans, sample);
         Ok(())
     }
 
     fn tf_static(&mut self, conn: &Connection, bytes: &[u8]) -> Result<(), String> {
         let msg = TfMessageMsg::decode_from(conn, bytes).map_err(|e| e.to_string())?;
-        for t in msg.transforms {
-            let pose = t
-                .transform
-                .to_isometry()
-                .ok_or("static transform is not finite or its quaternion is zero")?;
-            self.statics
-                .insert(t.child_frame_id, (t.header.frame_id, pose));
-        }
-        Ok(())
+        add_static_transforms(&mut self.statics, msg)
     }
 }
 
-/// A scan message as a [`LaserScan`] (odometry and mounting come later).
-fn to_laser_scan(msg: &LaserScanMsg) -> Result<LaserScan, String> {
+/// The static transform tree: child frame → (parent frame, `parent_from_child`).
+pub type StaticTree = HashMap<String, (String, Pose3)>;
+
+/// Adds the transforms of a `/tf_static` message to `statics`.
+///
+/// # Errors
+/// A transform that is not finite or whose quaternion is zero (the ones before it are kept).
+pub fn add_static_transforms(statics: &mut StaticTree, msg: TfMessageMsg) -> Result<(), String> {
+    for t in msg.transforms {
+        let pose = t
+            .transform
+            .to_isometry()
+            .ok_or("static transform is not finite or its quaternion is zero")?;
+        statics.insert(t.child_frame_id, (t.header.frame_id, pose));
+    }
+    Ok(())
+}
+
+/// An odometry message as the planar reading slamkit uses: its time (`header.stamp`) and
+/// `odom_from_base` projected onto the ground plane (x, y, yaw).
+///
+/// # Errors
+/// A pose that is not finite or whose quaternion is zero.
+pub fn odom_sample(msg: &OdometryMsg) -> Result<OdomSample, String> {
+    let pose = msg
+        .pose
+        .to_isometry()
+        .ok_or("odometry pose is not finite or its quaternion is zero")?;
+    let yaw = pose.rotation.euler_angles().2;
+    Ok(OdomSample {
+        timestamp: msg.header.stamp.as_secs_f64(),
+        pose: Pose2::new(pose.translation.vector.xy(), yaw),
+    })
+}
+
+/// A scan message as a [`LaserScan`] (odometry and mounting come later): ranges below
+/// `range_min` become NaN (no usable return), the maximum range follows the CARMEN rule.
+///
+/// # Errors
+/// A scan without beams, or with a beam layout that is not finite or has a zero increment.
+pub fn to_laser_scan(msg: &LaserScanMsg) -> Result<LaserScan, String> {
     let (min, inc) = (f64::from(msg.angle_min), f64::from(msg.angle_increment));
     if msg.ranges.is_empty() {
         return Err("scan has no beams".into());
@@ -325,7 +347,7 @@ fn to_laser_scan(msg: &LaserScanMsg) -> Result<LaserScan, String> {
 
 /// The frames met walking up the static tree from `frame` (itself first), each with
 /// `ancestor_from_frame`.
-fn ancestors(statics: &HashMap<String, (String, Pose3)>, frame: &str) -> Vec<(String, Pose3)> {
+fn ancestors(statics: &StaticTree, frame: &str) -> Vec<(String, Pose3)> {
     let mut out = vec![(frame.to_string(), Pose3::identity())];
     // A tree deeper than this is a loop in the data.
     for _ in 0..64 {
@@ -344,7 +366,7 @@ fn ancestors(statics: &HashMap<String, (String, Pose3)>, frame: &str) -> Vec<(St
 }
 
 /// `target_from_source` through the static tree, when the two frames are connected.
-fn lookup(statics: &HashMap<String, (String, Pose3)>, target: &str, source: &str) -> Option<Pose3> {
+fn lookup(statics: &StaticTree, target: &str, source: &str) -> Option<Pose3> {
     let from_source = ancestors(statics, source);
     ancestors(statics, target)
         .into_iter()
@@ -354,9 +376,10 @@ fn lookup(statics: &HashMap<String, (String, Pose3)>, target: &str, source: &str
         })
 }
 
-/// The laser's mounting from the static transforms (see the module documentation).
-fn mounting(
-    statics: &HashMap<String, (String, Pose3)>,
+/// The laser's mounting from the static transforms (see the module documentation): the
+/// path from `base_frame` (else `base_link`, `base_footprint`) to `laser_frame`.
+pub fn mounting(
+    statics: &StaticTree,
     base_frame: Option<&str>,
     laser_frame: Option<&str>,
 ) -> Mounting {
@@ -394,7 +417,9 @@ fn mounting(
     ))
 }
 
-fn apply_mounting(scans: &mut [LaserScan], mounting: &Mounting) {
+/// Sets each scan's `base_from_laser` from `mounting`, mirroring the beam angles of a laser
+/// mounted upside down.
+pub fn apply_mounting(scans: &mut [LaserScan], mounting: &Mounting) {
     let Mounting::TfStatic {
         x_y_yaw: [x, y, yaw],
         mirrored,

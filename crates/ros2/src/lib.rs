@@ -1,0 +1,43 @@
+//! slamkit on a live ROS 2 robot, with no ROS installation: a node over RustDDS (through
+//! `ros2-client`, both pure Rust) that subscribes to the robot's sensors, runs the same
+//! session the command line runs on files ([`slamkit_slam`]), and publishes the map, the
+//! `map → odom` transform and the pose as `slam_toolbox` does, so RViz, Foxglove and Nav2 take
+//! them as they are.
+//!
+//! * [`lidar_node`]: `slamkit ros2 lidar` (2D lidar + wheel odometry).
+//! * [`pairing`]: live scans tied to odometry by the rule of the bag reader, in publication
+//!   order.
+//! * [`params`]: the ROS-style parameter file (`--params FILE.yaml`).
+//! * [`msgs`], [`grid_msg`]: the messages, and the occupancy grid as `nav_msgs/OccupancyGrid`.
+//!
+//! Frames follow REP 105 (`map`, `odom`, `base_link`); discovery is DDS's default (multicast
+//! on the domain's ports), as every ROS 2 node's.
+
+pub mod grid_msg;
+pub mod lidar_node;
+pub mod msgs;
+pub mod pairing;
+pub mod params;
+
+pub use lidar_node::{run_lidar_node, LidarNodeConfig, LidarNodeRun, NodeMode, NodeStats};
+
+/// Why the node cannot run.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Ros2Error {
+    /// DDS could not start, or a reader or writer could not be made.
+    #[error("DDS: {0}")]
+    Dds(String),
+    /// A node or topic name that ROS 2 does not accept.
+    #[error("not a valid ROS 2 name: {0}")]
+    Name(String),
+    /// A setting out of range, or a parameter file that does not read.
+    #[error("settings: {0}")]
+    Config(String),
+    /// The map could not be written.
+    #[error("saving the map: {0}")]
+    MapFile(String),
+    /// The session failed.
+    #[error(transparent)]
+    Slam(#[from] slamkit_slam::SlamError),
+}
