@@ -130,6 +130,17 @@ impl RosParams {
         })
     }
 
+    /// Reads and parses the parameter file at `path` ([`RosParams::parse`]).
+    ///
+    /// # Errors
+    /// [`Ros2Error::Config`] naming the file when it cannot be read or parsed.
+    pub fn load(path: &std::path::Path, node_name: &str) -> Result<Self, Ros2Error> {
+        let name = path.display();
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| Ros2Error::Config(format!("reading {name}: {e}")))?;
+        Self::parse(&text, node_name).map_err(|e| Ros2Error::Config(format!("{name}: {e}")))
+    }
+
     /// Names of the parameters slamkit does not use, sorted.
     pub fn ignored(&self) -> Vec<&str> {
         self.other.keys().map(String::as_str).collect()

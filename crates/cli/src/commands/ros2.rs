@@ -1,7 +1,7 @@
 //! `slamkit ros2 lidar`: the ROS 2 node ([`slamkit_ros2`]) with its arguments; on stop
 //! (Ctrl-C, SIGTERM, or `--idle-exit`) the map, trajectory and report go to `--out`.
 
-use crate::output::{finish, timings_json, write_grid};
+use crate::output::finish;
 use anyhow::Context;
 use serde_json::json;
 use slamkit_core::Pose2;
@@ -86,21 +86,13 @@ fn lidar(args: &LidarNodeArgs) -> anyhow::Result<()> {
             .with_context(|| format!("ROS_DOMAIN_ID={id} is not a domain number"))?;
     }
     let params = match &args.params {
-        Some(path) => {
-            let text = std::fs::read_to_string(path)
-                .with_context(|| format!("reading {}", path.display()))?;
-            let p = RosParams::parse(&text, &node.node_name)
-                .with_context(|| path.display().to_string())?;
-            if !p.ignored().is_empty() {
-                eprintln!(
-                    "note: parameters not used by slamkit: {}",
-                    p.ignored().join(", ")
-                );
-            }
-            p
-        }
+        Some(path) => RosParams::load(path, &node.node_name)?,
         None => RosParams::default(),
     };
+    if !params.ignored().is_empty() {
+        let ignored = params.ignored().join(", ");
+        eprintln!("note: parameters not used by slamkit: {ignored}");
+    }
     let localize = args.localize.clone().or_else(|| {
         (params.mode == Some(NodeMode::Localization))
             .then(|| params.map_file())
@@ -150,7 +142,7 @@ fn lidar(args: &LidarNodeArgs) -> anyhow::Result<()> {
     let trajectory = run.session.trajectory();
     slamkit_io::trajectory_file::write_tum(&out.join("trajectory.tum"), &trajectory)?;
     if !run.scans.is_empty() || localize.is_some() {
-        write_grid(&run.session.output_grid(&run.scans)?, &out.join("map"))?;
+        slamkit_map::save_grid_files(&run.session.output_grid(&run.scans)?, &out.join("map"))?;
         run.session.map_file()?.save(&out.join("map.skmap"))?;
     }
     let counts = run.session.frame_counts();
@@ -167,8 +159,8 @@ fn lidar(args: &LidarNodeArgs) -> anyhow::Result<()> {
         },
         "session": run.session.stats(),
         "wall_seconds": started.elapsed().as_secs_f64(),
-        "timings_ms": timings_json(&run.session.timings()),
-        "node_latency_ms": timings_json(&run.stats.latency),
+        "timings_ms": run.session.timings().summary(),
+        "node_latency_ms": run.stats.latency.summary(),
     });
     finish(folder, &report)?;
     println!(
