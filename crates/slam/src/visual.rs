@@ -50,7 +50,9 @@ pub use prepare::{FramePreparer, PreparedObservation};
 use cpu_time::ThreadTime;
 use slamkit_core::{Observation, Pose3, StageTimings, Trajectory};
 use slamkit_io::{Dataset, DatasetFormat};
+use slamkit_vo::covisibility::PlaceFeatures;
 use slamkit_vo::frame::Rig;
+use slamkit_vo::motion::StereoCamera;
 use slamkit_vo::{
     FailReason, FrameStatus, FrontendKind, Odometry, TrackingMode, VoConfig, VoxelMap,
 };
@@ -136,6 +138,9 @@ pub struct VisualStats {
     pub relocalisations: usize,
     /// Frames while tracking was lost, reported without a pose (part of `failed`).
     pub lost: usize,
+    /// Tracked frames whose pose the points of the saved map measured
+    /// ([`VisualSlam::localising_in`]; the others were carried by odometry).
+    pub map_tracked: usize,
     /// Observations the session does not use (other sensors, another kind of camera).
     pub ignored: usize,
     /// Tracked frames left out of the point map because its thread was busy
@@ -289,6 +294,7 @@ impl VisualSlam {
             Ok(mut frame) => {
                 let points = std::mem::take(&mut frame.map_source);
                 let place = frame.place.take();
+                let camera = frame.stereo_camera(&self.config);
                 let found = place
                     .as_ref()
                     .filter(|_| searching)
@@ -305,6 +311,9 @@ impl VisualSlam {
                     None if searching => self.odometry.skip(FailReason::NotRelocalised),
                     None => self.odometry.track(frame),
                 };
+                if !matches!(status, FrameStatus::Failed(_)) {
+                    self.follow_map(place.as_ref(), &camera);
+                }
                 (status, points, place)
             }
             Err(reason) => (self.odometry.skip(reason), Default::default(), None),
@@ -399,7 +408,7 @@ impl VisualSlam {
     /// keyframes), `world_from_tracked`, with the keyframe found (this session's map only).
     fn locate(
         &mut self,
-        place: &slamkit_vo::covisibility::PlaceFeatures,
+        place: &PlaceFeatures,
     ) -> Option<(Option<slamkit_vo::relocalisation::Relocalisation>, Pose3)> {
         if let Some(map) = &self.in_map {
             return map.locate(place).map(|pose| (None, pose));
@@ -408,13 +417,27 @@ impl VisualSlam {
         Some((Some(found), pose))
     }
 
+    /// In a saved map, moves the tracking state to where the map's points put the frame just
+    /// tracked (odometry carries on from there); where they do not match, odometry's pose
+    /// stands.
+    fn follow_map(&mut self, place: Option<&PlaceFeatures>, camera: &StereoCamera) {
+        let (Some(map), Some(place)) = (&self.in_map, place) else {
+            return;
+        };
+        let predicted = self.odometry.pose();
+        if let Some(fix) = map.track(place, camera, &predicted) {
+            self.odometry.correct(&(fix * predicted.inverse()));
+            self.stats.map_tracked += 1;
+        }
+    }
+
     /// Hands a tracked frame to loop closing (when on); when a loop closed, moves the tracking
     /// state with the corrected map and says so.
     fn close_loops(
         &mut self,
         timestamp: f64,
         status: &FrameStatus,
-        place: Option<slamkit_vo::covisibility::PlaceFeatures>,
+        place: Option<PlaceFeatures>,
         joined: Joined,
     ) -> bool {
         let Some(loops) = &mut self.loops else {

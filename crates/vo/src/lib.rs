@@ -18,6 +18,7 @@
 //! * [`place_index`]: the online place index over binary descriptors (HBST).
 //! * [`loop_closure`]: loop candidates, temporal consistency, geometric verification.
 //! * [`relocalisation`]: a frame without a pose found among a map's keyframes.
+//! * [`map_tracking`]: a frame's pose measured from a saved map's points near its prediction.
 //! * [`voxel_map`]: the world point map, merged per voxel, PLY export.
 //! * [`pose_graph`]: the SE(3) pose graph of loop closure, optimised by Levenberg–Marquardt
 //!   with exact SE(3) Jacobians, sparse block elimination and an optional Cauchy kernel.
@@ -33,6 +34,7 @@ pub mod error;
 pub mod frame;
 pub mod local_map;
 pub mod loop_closure;
+pub mod map_tracking;
 pub mod metrics;
 pub mod motion;
 pub mod odometry;

@@ -13,6 +13,7 @@ use slamkit_core::Pose3;
 use slamkit_vision::{match_descriptors, MatchConfig, OrbConfig};
 
 use crate::covisibility::PlaceFeatures;
+use crate::map_tracking::MapTrackingConfig;
 use crate::place_index::PlaceIndexConfig;
 use crate::relocalisation::RelocalisationConfig;
 use crate::VoError;
@@ -58,6 +59,8 @@ pub struct LoopClosureConfig {
     pub loop_robust_scale: f64,
     /// Finding the camera in the map again when tracking is lost (verified as loops are).
     pub relocalisation: RelocalisationConfig,
+    /// Tracking against a saved map's points (`slamkit vo --localize`).
+    pub map_tracking: MapTrackingConfig,
 }
 
 impl Default for LoopClosureConfig {
@@ -79,6 +82,7 @@ impl Default for LoopClosureConfig {
             odometry_sigma: (0.01, 0.01),
             loop_robust_scale: 3.0,
             relocalisation: RelocalisationConfig::default(),
+            map_tracking: MapTrackingConfig::default(),
         }
     }
 }
@@ -91,6 +95,7 @@ impl LoopClosureConfig {
     pub fn validate(&self) -> Result<(), VoError> {
         self.place_index.validate()?;
         self.relocalisation.validate()?;
+        self.map_tracking.validate()?;
         for (field, v) in [
             ("loop_closure.keyframe_distance_m", self.keyframe_distance_m),
             ("loop_closure.keyframe_angle_deg", self.keyframe_angle_deg),

@@ -4,15 +4,18 @@
 //!
 //! A [`super::VisualSlam`] built with [`super::VisualSlam::localising_in`] has no pose until a
 //! frame is found in the map; from then on odometry tracks, and the map is searched again
-//! whenever tracking is lost. The map is never changed. Not yet done (issue 20, item 6):
-//! tracking against the map's points. Putting every tracked frame back where a 3D–3D match
-//! with a keyframe says it is was tried and made things worse on 7-Scenes (0.19 m against
-//! the map's trajectory instead of 0.031 m): one such match is far noisier than odometry.
+//! whenever tracking is lost. Each tracked frame is then measured against the map's points
+//! ([`MapLocaliser::track`], `slamkit_vo::map_tracking`: the points of the keyframes nearest
+//! the odometry's pose, projected, matched and refined on), and odometry carries on from
+//! where the map put it; where the map has too few points in view (a part of the scene it
+//! lacks), odometry alone, until the map's points match again. The map is never changed.
 //!
 //! Poses here are `map_from_tracked` of the tracked camera (the one features are in).
 
 use slamkit_core::Pose3;
 use slamkit_vo::covisibility::PlaceFeatures;
+use slamkit_vo::map_tracking::{nearest_keyframes, track_in_map, MapPoint, MapTrackingConfig};
+use slamkit_vo::motion::{MotionConfig, StereoCamera};
 use slamkit_vo::place_index::PlaceIndex;
 use slamkit_vo::relocalisation::{relocalise, RelocalisationConfig};
 use slamkit_vo::VoConfig;
@@ -25,9 +28,13 @@ use super::keyframes::VisualMap;
 #[derive(Debug)]
 pub(super) struct MapLocaliser {
     config: RelocalisationConfig,
+    tracking: MapTrackingConfig,
+    motion: MotionConfig,
     index: PlaceIndex,
     /// Per keyframe: `map_from_tracked` and its features in the tracked camera.
     keyframes: Vec<(Pose3, PlaceFeatures)>,
+    /// The keyframes' `map_from_tracked` alone, to find the nearest.
+    poses: Vec<Pose3>,
 }
 
 impl MapLocaliser {
@@ -64,7 +71,10 @@ impl MapLocaliser {
         }
         Ok(Self {
             config: config.loop_closure.relocalisation.clone(),
+            tracking: config.loop_closure.map_tracking.clone(),
+            motion: config.motion.clone(),
             index,
+            poses: keyframes.iter().map(|k| k.0).collect(),
             keyframes,
         })
     }
@@ -79,5 +89,43 @@ impl MapLocaliser {
         )?;
         let (map_from_keyframe, _) = self.keyframes.get(found.keyframe)?;
         Some(map_from_keyframe * found.verified.candidate_from_query)
+    }
+
+    /// `map_from_tracked` of a frame with features `place` seen by `camera`, measured from
+    /// the points of the keyframes nearest its odometry pose `map_from_predicted`; `None`
+    /// where they do not match it (or map tracking is off).
+    pub(super) fn track(
+        &self,
+        place: &PlaceFeatures,
+        camera: &StereoCamera,
+        map_from_predicted: &Pose3,
+    ) -> Option<Pose3> {
+        if !self.tracking.enabled {
+            return None;
+        }
+        let points: Vec<MapPoint> =
+            nearest_keyframes(&self.poses, map_from_predicted, &self.tracking)
+                .into_iter()
+                .filter_map(|i| self.keyframes.get(i))
+                .flat_map(|(map_from_keyframe, features)| {
+                    features
+                        .points
+                        .iter()
+                        .zip(&features.descriptors)
+                        .map(move |(p, d)| MapPoint {
+                            position: map_from_keyframe * p,
+                            descriptor: *d,
+                        })
+                })
+                .collect();
+        let fix = track_in_map(
+            &points,
+            place,
+            camera,
+            map_from_predicted,
+            &self.tracking,
+            &self.motion,
+        )?;
+        Some(fix.map_from_camera)
     }
 }

@@ -1,0 +1,95 @@
+//! Fast motion (issue 20, "Done when"): the KITTI 06 clip of `$SLAMKIT_DATA` (frames 0–50,
+//! skipped when it is not set) read taking every 3rd frame, as a car at highway speed seen at
+//! 10 Hz: about 3 m between frames, image motion of tens of pixels near the borders. Both front
+//! ends must track every frame (no failed frame, no re-initialisation), the ATE (SE(3)
+//! aligned) at most 0.20 m. The view of the dataset is built here: the same sequence with two
+//! frames of three left out.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers fail loudly
+
+use slamkit_io::{Dataset, DatasetFormat};
+use slamkit_slam::profile::Profile;
+use slamkit_slam::visual::{self, RunOptions, VisualSlam};
+use slamkit_testdata::data;
+use slamkit_vo::{evaluate, FrameStatus, FrontendKind, VoConfig};
+
+const KITTI_06: &str = "stereo/kitti_odometry_06_0000-0050";
+
+/// KITTI 06 frames 0, 3, 6, …, 48.
+fn every_third_frame(test: &str) -> Option<Dataset> {
+    let dir = data(test, KITTI_06)?;
+    let Dataset::Stereo(mut sequence) = Dataset::open(&dir, DatasetFormat::Kitti).unwrap() else {
+        panic!("KITTI is a stereo dataset");
+    };
+    let mut i = 0;
+    sequence.frames.retain(|_| {
+        i += 1;
+        (i - 1) % 3 == 0
+    });
+    Some(Dataset::Stereo(sequence))
+}
+
+/// Runs `frontend` with the `stereo` profile (as `slamkit vo` does for KITTI) and checks the
+/// issue's bar: every frame tracked, one initialisation, ATE ≤ `max_ate_m`.
+fn tracks_every_frame(test: &str, frontend: FrontendKind, max_ate_m: f64) {
+    let Some(dataset) = every_third_frame(test) else {
+        return;
+    };
+    let config = Profile::builtin("stereo")
+        .unwrap()
+        .apply(
+            "vo",
+            VoConfig {
+                frontend,
+                ..VoConfig::default()
+            },
+        )
+        .unwrap();
+    let mut session = VisualSlam::new(&config, visual::rig_of(&dataset)).unwrap();
+    let result = visual::run(
+        &mut session,
+        dataset.observations(),
+        RunOptions::default(),
+        |_| {},
+    )
+    .unwrap();
+    let stats = session.stats();
+    let failed: Vec<(usize, FrameStatus)> = result
+        .frames
+        .iter()
+        .enumerate()
+        .filter(|(_, f)| matches!(f.status, FrameStatus::Failed(_)))
+        .map(|(i, f)| (i, f.status.clone()))
+        .collect();
+    let m = evaluate(&result.trajectory, dataset.ground_truth().unwrap()).unwrap();
+    eprintln!(
+        "KITTI 06 every 3rd frame, {frontend:?}: {} frames, ATE {:.4} m, drift {:.2} %, \
+         failed {failed:?}, {stats:?}",
+        dataset.len(),
+        m.ate.rmse,
+        m.end_point_drift_percent
+    );
+    assert_eq!(dataset.len(), 17);
+    assert!(failed.is_empty(), "failed frames {failed:?}");
+    assert_eq!(stats.initialisations, 1, "{stats:?}");
+    assert_eq!(result.trajectory.len(), dataset.len());
+    assert!(m.ate.rmse <= max_ate_m, "ATE {}", m.ate.rmse);
+}
+
+// Not met yet (measured 2026-11-26, `cargo test --release -p slamkit-slam --test
+// visual_fast_motion -- --ignored --nocapture`): KLT tracks all 17 frames but the ATE is
+// 0.292 m; ORB (one pyramid level, the stereo profile) fails 11 of 17 frames and restarts
+// twice. Tried and not kept: KLT searching from the constant-velocity prediction (guesses 1-4
+// px from where the features were found instead of 25-35 px) gave 0.300 m and one failed frame
+// here, and 0.0747 -> 0.111 m on the full-rate clip; ORB falling back on unguided matching
+// found no motion either (scale change between frames 3 m apart, one ORB level).
+#[test]
+#[ignore = "issue 20 fast motion not met yet: KLT ATE 0.29 m, ORB 11 of 17 frames fail"]
+fn kitti_06_every_third_frame_klt() {
+    tracks_every_frame("kitti_06_every_third_frame_klt", FrontendKind::Klt, 0.20);
+}
+
+#[test]
+#[ignore = "issue 20 fast motion not met yet: ORB fails 11 of 17 frames"]
+fn kitti_06_every_third_frame_orb() {
+    tracks_every_frame("kitti_06_every_third_frame_orb", FrontendKind::Orb, 0.20);
+}
