@@ -289,7 +289,10 @@ fn keyframes_that_moved_are_sent_again() {
         panic!("{second:?}");
     };
     assert!(edges.is_empty());
-    assert_eq!(moved, &[(1, quantised(&Pose2::new([1.0, 0.03].into(), 0.0)))]);
+    assert_eq!(
+        moved,
+        &[(1, quantised(&Pose2::new([1.0, 0.03].into(), 0.0)))]
+    );
     // nothing moved since: nothing to send
     assert!(outbox.flush(live(&keyframes)).is_empty());
     let mut inbox = RobotInbox::default();
