@@ -23,6 +23,8 @@
 //! * [`visual`]: [`VisualSlam`], visual odometry of an RGB-D or stereo camera as a session, and
 //!   [`visual::run`], which overlaps decoding and frame preparation with tracking;
 //!   `visual::simulated` runs it on a simulated camera and scores it.
+//! * [`map_updates`]: what a robot of a fleet sends about its map, incrementally, and its
+//!   map rebuilt from those messages in any order.
 //! * [`merge`]: offline merging of 2D lidar maps whose relative poses are unknown (place
 //!   recognition, verification, pairwise consistency, joint pose-graph optimisation).
 //! * [`ground_robot`]: [`GroundRobotNav`], a ground robot's camera session, floor grid, planner
@@ -36,6 +38,7 @@ mod error;
 pub mod ground_robot;
 pub mod lidar;
 pub mod map_file;
+pub mod map_updates;
 pub mod merge;
 pub mod odometry_gate;
 pub mod profile;

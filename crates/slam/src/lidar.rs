@@ -165,6 +165,17 @@ pub struct FrameCounts {
     pub failed: usize,
 }
 
+/// A view of a new ICP-SLAM map as it grows ([`LidarSlam::live_map`]).
+#[derive(Debug, Clone, Copy)]
+pub struct LiveMap<'a> {
+    /// Every keyframe at its current pose, in the order made.
+    pub keyframes: &'a [slamkit_lidar::point_map::Keyframe],
+    /// The scan of each keyframe.
+    pub scans: &'a [LaserScan],
+    /// The pose graph's edges, in the order added.
+    pub edges: &'a [Edge],
+}
+
 /// Inserts scans at their poses (`world_from_base`) into a fresh occupancy grid.
 pub fn grid_of_scans<'a>(
     scans: impl IntoIterator<Item = (&'a LaserScan, Pose2)>,
@@ -492,6 +503,21 @@ impl LidarSlam {
             "scans": self.stats.scans,
         });
         self.map().to_new_file(notes)
+    }
+
+    /// The growing parts of a new ICP-SLAM map, which only ever gain keyframes and edges (the
+    /// keyframes' poses change when loop closure optimises the graph): what
+    /// [`crate::map_updates::UpdateOutbox`] sends incrementally. `None` for the particle filter
+    /// (its map is drawn from the best particle at the end) and in a saved map.
+    pub fn live_map(&self) -> Option<LiveMap<'_>> {
+        match &self.mode {
+            Mode::Icp { slam, scans } => Some(LiveMap {
+                keyframes: slam.keyframes(),
+                scans,
+                edges: slam.graph().edges(),
+            }),
+            _ => None,
+        }
     }
 
     /// Counters so far.

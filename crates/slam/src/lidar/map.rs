@@ -30,7 +30,7 @@ const SCANS: [u8; 4] = *b"SCAN";
 /// A scan that follows no keyframe.
 const NO_KEYFRAME: u32 = u32::MAX;
 /// A range that was not a non-negative number.
-const INVALID_RANGE: u32 = u32::MAX;
+pub(crate) const INVALID_RANGE: u32 = u32::MAX;
 
 /// One keyframe: a scan and where the robot was when it took it.
 #[derive(Debug, Clone, PartialEq)]
@@ -356,7 +356,7 @@ fn get_pose(r: &mut Reader<'_>) -> Result<Pose2, MapFileError> {
 }
 
 /// A range in whole millimetres, or [`INVALID_RANGE`].
-fn quantise_range(r: f64) -> u32 {
+pub(crate) fn quantise_range(r: f64) -> u32 {
     if r.is_finite() && r >= 0.0 && r * 1000.0 < f64::from(INVALID_RANGE - 1) {
         (r * 1000.0).round() as u32
     } else {
@@ -364,7 +364,7 @@ fn quantise_range(r: f64) -> u32 {
     }
 }
 
-fn range_from_mm(mm: u32) -> f64 {
+pub(crate) fn range_from_mm(mm: u32) -> f64 {
     if mm == INVALID_RANGE {
         f64::NAN
     } else {

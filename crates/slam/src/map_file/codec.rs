@@ -58,6 +58,21 @@ impl Writer {
     pub fn bytes(&mut self, v: &[u8]) {
         self.buf.extend_from_slice(v);
     }
+
+    /// A `u64` in LEB128: seven bits a byte, low bits first, so small numbers take one byte.
+    pub fn varint(&mut self, mut v: u64) {
+        while v >= 0x80 {
+            self.buf.push((v as u8 & 0x7f) | 0x80);
+            v >>= 7;
+        }
+        self.buf.push(v as u8);
+    }
+
+    /// An `i64` as a zigzag-mapped varint (0, −1, 1, −2, ... → 0, 1, 2, 3, ...), so small
+    /// magnitudes of either sign take one byte.
+    pub fn signed_varint(&mut self, v: i64) {
+        self.varint(((v << 1) ^ (v >> 63)) as u64);
+    }
 }
 
 /// Reads values back, failing on anything past the end.
@@ -132,6 +147,28 @@ impl<'a> Reader<'a> {
         }
     }
 
+    /// A LEB128 `u64` ([`Writer::varint`]).
+    pub fn varint(&mut self) -> Result<u64, MapFileError> {
+        let mut v = 0u64;
+        for shift in (0..64).step_by(7) {
+            let byte = self.u8()?;
+            v |= u64::from(byte & 0x7f) << shift;
+            if byte & 0x80 == 0 {
+                return Ok(v);
+            }
+        }
+        Err(MapFileError::Malformed(format!(
+            "{} holds a variable-length number longer than 64 bits",
+            self.what
+        )))
+    }
+
+    /// A zigzag-mapped `i64` ([`Writer::signed_varint`]).
+    pub fn signed_varint(&mut self) -> Result<i64, MapFileError> {
+        let v = self.varint()?;
+        Ok((v >> 1) as i64 ^ -((v & 1) as i64))
+    }
+
     /// A count of items of at least `item_bytes` bytes each, checked against the bytes left.
     pub fn len(&mut self, item_bytes: usize) -> Result<usize, MapFileError> {
         let n = self.u32()? as usize;
@@ -182,6 +219,23 @@ mod tests {
         assert!(r.len(8).is_err());
         let mut r = Reader::new(&bytes[..3], "test");
         assert!(r.u8().is_ok() && r.u32().is_err());
+        let mut w = Writer::new();
+        for v in [0, 1, -1, 63, -64, 64, 1 << 40, i64::MAX, i64::MIN] {
+            w.signed_varint(v);
+        }
+        w.varint(u64::MAX);
+        let bytes = w.into_bytes();
+        // one byte for magnitudes under 64, ten for the extremes
+        assert_eq!(bytes[..5], [0, 2, 1, 126, 127]);
+        let mut r = Reader::new(&bytes, "test");
+        for v in [0, 1, -1, 63, -64, 64, 1 << 40, i64::MAX, i64::MIN] {
+            assert_eq!(r.signed_varint().unwrap(), v);
+        }
+        assert_eq!(r.varint().unwrap(), u64::MAX);
+        r.finish().unwrap();
+        // eleven continuation bytes overflow 64 bits; a cut-off varint is an error
+        assert!(Reader::new(&[0xff; 11], "test").varint().is_err());
+        assert!(Reader::new(&[0x80], "test").varint().is_err());
         let nan = f64::NAN.to_le_bytes();
         assert!(Reader::new(&nan, "test").f64().is_err());
     }
