@@ -144,8 +144,13 @@ fn data_uri(png: &Path) -> Result<String, ReportError> {
     Ok(format!("data:image/png;base64,{}", base64(&bytes)))
 }
 
-/// Standard base64 (RFC 4648, with padding).
-fn base64(bytes: &[u8]) -> String {
+/// Standard base64 (RFC 4648, with padding): how HTML embeds images and JSON carries bytes
+/// (Foxglove's JSON schemas, `slamkit_slam::record`).
+///
+/// ```
+/// assert_eq!(slamkit_eval::report_html::base64(b"foobar"), "Zm9vYmFy");
+/// ```
+pub fn base64(bytes: &[u8]) -> String {
     const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
     let mut out = String::with_capacity(bytes.len().div_ceil(3) * 4);
     for chunk in bytes.chunks(3) {

@@ -12,6 +12,7 @@ use crate::SlamError;
 use mcap::records::MessageHeader;
 use serde_json::{json, Value};
 use slamkit_core::{LaserScan, Pose3};
+use slamkit_eval::report_html::base64;
 use slamkit_map::grid_io::trinary_image;
 use slamkit_map::OccupancyGrid;
 use std::collections::BTreeMap;
@@ -402,47 +403,9 @@ fn pose_json(pose: &Pose3) -> Value {
             "orientation": { "x": q.i, "y": q.j, "z": q.k, "w": q.w } })
 }
 
-/// Standard base64 (RFC 4648, padded), as JSON carries Foxglove's `bytes` fields.
-fn base64(bytes: &[u8]) -> String {
-    const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    let mut text = String::with_capacity(bytes.len().div_ceil(3) * 4);
-    for chunk in bytes.chunks(3) {
-        let b = [
-            chunk[0],
-            *chunk.get(1).unwrap_or(&0),
-            *chunk.get(2).unwrap_or(&0),
-        ];
-        let n = (u32::from(b[0]) << 16) | (u32::from(b[1]) << 8) | u32::from(b[2]);
-        for i in 0..4 {
-            if i <= chunk.len() {
-                text.push(ALPHABET[(n >> (18 - 6 * i) & 63) as usize] as char);
-            } else {
-                text.push('=');
-            }
-        }
-    }
-    text
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn base64_matches_rfc_4648_test_vectors() {
-        let cases = [
-            ("", ""),
-            ("f", "Zg=="),
-            ("fo", "Zm8="),
-            ("foo", "Zm9v"),
-            ("foob", "Zm9vYg=="),
-            ("fooba", "Zm9vYmE="),
-            ("foobar", "Zm9vYmFy"),
-        ];
-        for (plain, encoded) in cases {
-            assert_eq!(base64(plain.as_bytes()), encoded, "{plain}");
-        }
-    }
 
     #[test]
     fn a_recording_appears_only_when_finished_and_counts_its_messages() {
