@@ -117,16 +117,7 @@ impl LidarMap {
             w.len(e.from)?;
             w.len(e.to)?;
             put_pose(&mut w, &e.from_from_to);
-            for (i, j) in UPPER {
-                w.f64(e.information[(i, j)]);
-            }
-            match e.robust_scale {
-                Some(scale) => {
-                    w.u8(1);
-                    w.f64(scale);
-                }
-                None => w.u8(0),
-            }
+            put_edge_weights(&mut w, e);
         }
         let edges = w.into_bytes();
         let mut w = Writer::new();
@@ -202,21 +193,7 @@ impl LidarMap {
                 )));
             }
             let from_from_to = get_pose(&mut r)?;
-            let mut information = Matrix3::zeros();
-            for (i, j) in UPPER {
-                let v = r.f64()?;
-                information[(i, j)] = v;
-                information[(j, i)] = v;
-            }
-            let robust_scale = match r.u8()? {
-                0 => None,
-                1 => Some(r.f64()?),
-                flag => {
-                    return Err(MapFileError::Malformed(format!(
-                        "edge {from}-{to}: robust flag {flag}"
-                    )))
-                }
-            };
+            let (information, robust_scale) = get_edge_weights(&mut r, from, to)?;
             edges.push(Edge {
                 from,
                 to,
@@ -323,6 +300,45 @@ impl LidarMap {
 }
 
 /// The upper triangle of a 3 × 3 matrix, row by row.
+/// Writes an edge's information matrix (its upper triangle) and robust scale, as the map
+/// file and the map updates both store them.
+pub(crate) fn put_edge_weights(w: &mut Writer, e: &Edge) {
+    for (i, j) in UPPER {
+        w.f64(e.information[(i, j)]);
+    }
+    match e.robust_scale {
+        Some(scale) => {
+            w.u8(1);
+            w.f64(scale);
+        }
+        None => w.u8(0),
+    }
+}
+
+/// Reads what [`put_edge_weights`] wrote for the edge `from`–`to`.
+pub(crate) fn get_edge_weights(
+    r: &mut Reader,
+    from: usize,
+    to: usize,
+) -> Result<(Matrix3<f64>, Option<f64>), MapFileError> {
+    let mut information = Matrix3::zeros();
+    for (i, j) in UPPER {
+        let v = r.f64()?;
+        information[(i, j)] = v;
+        information[(j, i)] = v;
+    }
+    let robust_scale = match r.u8()? {
+        0 => None,
+        1 => Some(r.f64()?),
+        flag => {
+            return Err(MapFileError::Malformed(format!(
+                "edge {from}-{to}: robust flag {flag}"
+            )))
+        }
+    };
+    Ok((information, robust_scale))
+}
+
 const UPPER: [(usize, usize); 6] = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)];
 
 /// Writes a pose as `x, y, cos θ, sin θ`: the rotation's own numbers, so a map read back and

@@ -1,7 +1,9 @@
 //! Encoding and decoding of map update messages (the layout is in [`super`]'s documentation).
 
 use super::{MapUpdate, RobotStatus, UpdateBody, ANGLE_STEP_RAD, POSITION_STEP_M, UPDATE_MAGIC};
-use crate::lidar::map::{quantise_range, range_from_mm, INVALID_RANGE};
+use crate::lidar::map::{
+    get_edge_weights, put_edge_weights, quantise_range, range_from_mm, INVALID_RANGE,
+};
 use crate::lidar::MapKeyframe;
 use crate::map_file::codec::{Reader, Writer};
 use crate::map_file::{MapFileError, FORMAT_VERSION};
@@ -9,7 +11,6 @@ use crate::session::TrackingStatus;
 use flate2::read::DeflateDecoder;
 use flate2::write::DeflateEncoder;
 use flate2::Compression;
-use nalgebra::Matrix3;
 use slamkit_core::{LaserScan, Pose2};
 use slamkit_lidar::pose_graph::Edge;
 use std::io::{Read, Write};
@@ -18,9 +19,6 @@ use std::io::{Read, Write};
 const MAX_BODY_BYTES: u64 = 64 << 20;
 /// Positions beyond this are refused \[m\] (they would not fit the grid's integers).
 const MAX_POSITION_M: f64 = 1e9;
-/// The upper triangle of an information matrix, row by row (as the map file stores it).
-const UPPER: [(usize, usize); 6] = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)];
-
 const KEYFRAMES: u8 = 0;
 const EDGES: u8 = 1;
 const STATUS: u8 = 2;
@@ -293,16 +291,7 @@ fn put_edges(w: &mut Writer, edges: &[Edge], moved: &[(usize, Pose2)]) -> Result
         w.varint(e.from as u64);
         w.varint(e.to as u64);
         PoseDeltas::new().put(w, &e.from_from_to)?;
-        for (i, j) in UPPER {
-            w.f64(e.information[(i, j)]);
-        }
-        match e.robust_scale {
-            Some(scale) => {
-                w.u8(1);
-                w.f64(scale);
-            }
-            None => w.u8(0),
-        }
+        put_edge_weights(w, e);
     }
     put_count(w, moved.len());
     let mut poses = PoseDeltas::new();
@@ -332,21 +321,7 @@ fn get_edges(r: &mut Reader<'_>) -> Result<EdgesAndMoved, MapFileError> {
         let from = index(r.varint()?)?;
         let to = index(r.varint()?)?;
         let from_from_to = PoseDeltas::new().get(r)?;
-        let mut information = Matrix3::zeros();
-        for (i, j) in UPPER {
-            let v = r.f64()?;
-            information[(i, j)] = v;
-            information[(j, i)] = v;
-        }
-        let robust_scale = match r.u8()? {
-            0 => None,
-            1 => Some(r.f64()?),
-            flag => {
-                return Err(MapFileError::Malformed(format!(
-                    "edge {from}-{to}: robust flag {flag}"
-                )))
-            }
-        };
+        let (information, robust_scale) = get_edge_weights(r, from, to)?;
         edges.push(Edge {
             from,
             to,
