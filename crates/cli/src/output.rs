@@ -43,44 +43,15 @@ pub fn progress_bar(len: u64, what: &str) -> ProgressBar {
     bar
 }
 
-/// Peak resident memory of this process in bytes (VmHWM from /proc), when the OS tells it.
-pub fn peak_rss_bytes() -> Option<u64> {
-    proc_kib("/proc/self/status", "VmHWM:").map(|kib| kib * 1024)
-}
-
-/// A `KEY: N kB` value of a /proc file, in KiB.
-fn proc_kib(file: &str, key: &str) -> Option<u64> {
-    let text = std::fs::read_to_string(file).ok()?;
-    let line = text.lines().find(|l| l.starts_with(key))?;
-    line.split_whitespace().nth(1)?.parse().ok()
-}
-
-/// Refuses a run whose particle maps need more memory than this machine has (MemTotal), before
-/// it starts: `bytes` is the least they take ([`particle_maps_min_bytes`], `None` when unknown).
-///
-/// [`particle_maps_min_bytes`]: slamkit_slam::lidar::preflight::particle_maps_min_bytes
-pub fn ensure_fits_memory(bytes: Option<u64>, particles: usize) -> anyhow::Result<()> {
-    let limit = proc_kib("/proc/meminfo", "MemTotal:").map(|kib| kib * 1024);
-    let (Some(bytes), Some(limit)) = (bytes, limit) else {
-        return Ok(());
-    };
-    anyhow::ensure!(
-        bytes <= limit,
-        "{particles} particles need at least {:.1} GB for their maps ({:.2} MB each: the grid \
-         tiles one scan covers), more than this machine's {:.1} GB of memory; use fewer particles",
-        bytes as f64 / 1e9,
-        bytes as f64 / particles.max(1) as f64 / 1e6,
-        limit as f64 / 1e9
-    );
-    Ok(())
-}
-
-/// Ends a run: writes `report` as pretty JSON to `report.json` and moves every output into
+/// Ends a run: writes `report`, with the run's peak memory as `peak_rss_bytes`, as pretty JSON
+/// to `report.json` and moves every output into
 /// the output folder (each atomically; see [`OutputFolder`]), removing the files an earlier
 /// run left there that this one did not write (said on stderr). A report whose
 /// `metrics.error` is set (scoring failed) is written, then returned as the run's error.
 pub fn finish(folder: OutputFolder, report: &serde_json::Value) -> anyhow::Result<()> {
-    let text = serde_json::to_string_pretty(report).context("serialising report")?;
+    let mut report = report.clone();
+    report["peak_rss_bytes"] = serde_json::json!(slamkit_slam::memory::peak_rss_bytes());
+    let text = serde_json::to_string_pretty(&report).context("serialising report")?;
     std::fs::write(folder.path().join("report.json"), text + "\n")
         .with_context(|| format!("writing report.json in {}", folder.dir().display()))?;
     let dir = folder.dir().to_path_buf();
@@ -114,12 +85,5 @@ mod tests {
     fn chain_joins_causes() {
         let err = anyhow::anyhow!("root cause").context("reading log.clf");
         assert_eq!(error_chain(&err), "reading log.clf: root cause");
-    }
-
-    #[test]
-    fn peak_rss_is_reported_on_linux() {
-        if cfg!(target_os = "linux") {
-            assert!(peak_rss_bytes().is_some_and(|b| b > 0));
-        }
     }
 }

@@ -16,6 +16,8 @@
 //!   (read and written), the signals layered drone SLAM takes besides the scans.
 //! * 2D lidar logs: [`carmen`] (CARMEN `.clf`, plain or gzip: scans with wheel odometry) and
 //!   [`mrpt_text`] (text dumps of MRPT rawlogs and ground-truth files).
+//! * [`lidar_log`]: a lidar log from a CARMEN file or a bag, whichever the path holds, with the
+//!   warnings a user should see; a log without scans refused.
 //! * [`bag`]: ROS 1 bags (format 2.0: none, bz2 and lz4 chunks, indexed or not): topics,
 //!   messages in storage or time order, `sensor_msgs/LaserScan`, `nav_msgs/Odometry` and
 //!   `tf2_msgs/TFMessage` decoded, and a 2D lidar log with odometry and mounting from a bag.
@@ -42,6 +44,7 @@ pub mod image_writer;
 pub mod kitti;
 pub mod kitti_writer;
 pub mod layout;
+pub mod lidar_log;
 pub mod mrpt_text;
 pub mod odometry_bracket;
 pub mod output_folder;

@@ -40,6 +40,33 @@ pub struct PlannedPath {
     pub expanded: usize,
 }
 
+impl PlannedPath {
+    /// The waypoints as CSV, `x_m,y_m` under a header, start first (`path.csv` of `slamkit
+    /// plan`).
+    ///
+    /// ```
+    /// use nalgebra::Point2;
+    /// use slamkit_nav::PlannedPath;
+    ///
+    /// let path = PlannedPath {
+    ///     cells: vec![(0, 0), (1, 0)],
+    ///     waypoints_m: vec![Point2::new(0.025, 0.025), Point2::new(0.075, 0.025)],
+    ///     cost: 1.0,
+    ///     length_m: 0.05,
+    ///     through_unknown: false,
+    ///     expanded: 2,
+    /// };
+    /// assert_eq!(path.waypoints_csv(), "x_m,y_m\n0.025,0.025\n0.075,0.025\n");
+    /// ```
+    pub fn waypoints_csv(&self) -> String {
+        let mut text = String::from("x_m,y_m\n");
+        for p in &self.waypoints_m {
+            text += &format!("{},{}\n", p.x, p.y);
+        }
+        text
+    }
+}
+
 /// Plans from `start_m` to `goal_m` on `grid` (already inflated).
 ///
 /// # Errors

@@ -15,6 +15,7 @@
 //!   layer, and its run on a simulated flight scored against the truth (`drone::simulated`,
 //!   `drone::kidnapped`).
 //! * [`map_file`]: the `.skmap` container: header, sections, checksum, atomic writes.
+//! * [`memory`]: this process's peak memory and the machine's, for reports and preflight checks.
 //! * [`odometry_gate`]: odometry jumps a robot cannot have made, taken as no motion.
 //! * [`profile`]: named profiles (`config/*.toml`) and configuration files laid over a
 //!   session's settings.
@@ -39,6 +40,7 @@ pub mod ground_robot;
 pub mod lidar;
 pub mod map_file;
 pub mod map_updates;
+pub mod memory;
 pub mod merge;
 pub mod odometry_gate;
 pub mod profile;

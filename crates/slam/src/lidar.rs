@@ -426,6 +426,11 @@ impl LidarSlam {
         grid_of_scans(posed, OccupancyGridConfig::default())
     }
 
+    /// True for a session continuing a saved map ([`Self::resume`]).
+    pub fn continues_a_map(&self) -> bool {
+        matches!(&self.mode, Mode::InMap(in_map) if in_map.extend)
+    }
+
     /// The particle filter's best map, when the session runs one.
     pub fn particle_grid(&self) -> Option<&OccupancyGrid> {
         match &self.mode {

@@ -322,6 +322,20 @@ impl MapFile {
     }
 }
 
+/// True for a path naming a slamkit map file (extension `.skmap`, any case): what a program
+/// that also takes other maps (a ROS map_server YAML) checks to choose the reader.
+///
+/// ```
+/// use slamkit_slam::map_file::is_skmap;
+/// use std::path::Path;
+/// assert!(is_skmap(Path::new("office.SKMAP")));
+/// assert!(!is_skmap(Path::new("office.yaml")));
+/// ```
+pub fn is_skmap(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("skmap"))
+}
+
 /// The format version a map file's bytes declare, when they start with the magic bytes.
 pub fn peek_version(bytes: &[u8]) -> Option<(u16, u16)> {
     let head = bytes.get(..MAGIC.len() + 4)?;

@@ -1,9 +1,7 @@
-//! `slamkit bag info`: what a ROS 1 or ROS 2 bag holds; and the bag side of `slamkit lidar BAG`: its
-//! topics chosen, its scans read as a lidar log (all the reading is `slamkit_io::bag`'s).
+//! `slamkit bag info`: what a ROS 1 or ROS 2 bag holds; and the topics `slamkit lidar BAG`
+//! reads (all the reading is `slamkit_io::bag`'s).
 
-use anyhow::Context;
-use slamkit_io::bag::{read_scan_log, ScanTopics};
-use slamkit_io::carmen::CarmenLog;
+use slamkit_io::bag::ScanTopics;
 use std::path::{Path, PathBuf};
 
 /// Arguments of `slamkit bag`.
@@ -38,9 +36,12 @@ pub struct TopicArgs {
 }
 
 impl TopicArgs {
-    /// True when a topic was named.
-    pub fn any(&self) -> bool {
-        self.scan_topic.is_some() || self.odom_topic.is_some()
+    /// The topics to read, as the bag reader takes them.
+    pub fn scan_topics(&self) -> ScanTopics {
+        ScanTopics {
+            scan: self.scan_topic.clone(),
+            odom: self.odom_topic.clone(),
+        }
     }
 }
 
@@ -62,19 +63,4 @@ fn info(path: &Path, as_json: bool) -> anyhow::Result<()> {
         print!("{info}");
     }
     Ok(())
-}
-
-/// The lidar log of the bag at `path`, its topics, mounting and damage reported on the
-/// terminal.
-pub(crate) fn read_log(path: &Path, topics: &TopicArgs) -> anyhow::Result<CarmenLog> {
-    let topics = ScanTopics {
-        scan: topics.scan_topic.clone(),
-        odom: topics.odom_topic.clone(),
-    };
-    let bag = read_scan_log(path, &topics).context("reading bag")?;
-    println!("bag {}: {}", path.display(), bag.describe());
-    for warning in bag.warnings() {
-        eprintln!("warning: {}: {warning}", path.display());
-    }
-    Ok(bag.log)
 }

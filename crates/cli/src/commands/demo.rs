@@ -10,7 +10,7 @@
 //! `metrics.{icp,pf}.position_error_max_m`, `metrics.vo.ate_rmse_m`,
 //! `metrics.layer_localisation`) and `report.html` (all of it on one page, images embedded).
 
-use crate::output::{finish, peak_rss_bytes, progress_bar};
+use crate::output::{finish, progress_bar};
 use serde_json::json;
 use slamkit_io::output_folder::OutputFolder;
 use slamkit_slam::drone::demo::{run_demo, DemoStep, DEMO_OUTPUTS};
@@ -55,7 +55,6 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     let mut outcome = run_demo(&args.world, args.seed, folder.path(), &progress)?;
     camera_bar.finish_and_clear();
     outcome.report["wall_seconds"] = json!(started.elapsed().as_secs_f64());
-    outcome.report["peak_rss_bytes"] = json!(peak_rss_bytes());
     finish(folder, &outcome.report)?;
     println!("{}", outcome.summary());
     println!("outputs in {}", args.out.display());

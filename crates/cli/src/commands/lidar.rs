@@ -5,20 +5,19 @@
 
 use crate::commands::bag::TopicArgs;
 use crate::commands::eval::load_relations;
-use crate::commands::{bag, lidar_drone, lidar_mcl};
-use crate::output::{
-    ensure_fits_memory, finish, merge_json, peak_rss_bytes, progress_bar, Unsuccessful,
-};
+use crate::commands::{lidar_drone, lidar_mcl};
+use crate::output::{finish, merge_json, progress_bar, Unsuccessful};
 use anyhow::Context;
 use serde::de::DeserializeOwned;
 use serde::Serialize;
 use serde_json::json;
 use slamkit_core::{Pose2, Trajectory};
 use slamkit_io::carmen::CarmenLog;
+use slamkit_io::lidar_log::read_lidar_log;
 use slamkit_io::output_folder::OutputFolder;
-use slamkit_map::save_grid_files;
-use slamkit_slam::lidar::preflight::{ensure_usable, particle_maps_min_bytes};
+use slamkit_slam::lidar::preflight::{ensure_fits_memory, ensure_usable, particle_maps_min_bytes};
 use slamkit_slam::lidar::{run_report, LidarMap};
+use slamkit_slam::map_file::is_skmap;
 use slamkit_slam::profile::settings;
 use slamkit_slam::record::LidarRecording;
 use slamkit_slam::{LidarMethod, LidarSlam, LidarSlamConfig};
@@ -168,21 +167,9 @@ pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
     let session_seconds = session_started.elapsed().as_secs_f64();
     bar.finish_and_clear();
 
+    let save_map: Vec<&Path> = args.save_map.iter().map(PathBuf::as_path).collect();
+    session.write_run_files(out, &log.scans, &save_map)?;
     let trajectory = session.trajectory();
-    slamkit_io::trajectory_file::write_tum(&out.join("trajectory.tum"), &trajectory)?;
-    if args.continue_map.is_some() {
-        // Every scan of every run in the map, following the keyframes this run corrected.
-        let path = out.join("trajectory_map.tum");
-        slamkit_io::trajectory_file::write_tum(&path, &session.map().trajectory())?;
-    }
-    let grid = session.output_grid(&log.scans)?;
-    save_grid_files(&grid, &out.join("map"))?;
-    let map_file = session.map_file()?;
-    for path in std::iter::once(out.join("map.skmap")).chain(args.save_map.clone()) {
-        map_file
-            .save(&path)
-            .with_context(|| format!("saving the map to {}", path.display()))?;
-    }
 
     let mut report = json!({
         "input": args.log,
@@ -194,7 +181,6 @@ pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
         "map": args.localize.as_ref().or(args.continue_map.as_ref()),
         "wall_seconds": started.elapsed().as_secs_f64(),
         "session_seconds": session_seconds,
-        "peak_rss_bytes": peak_rss_bytes(),
         "particle_maps_min_bytes": particle_maps_min_bytes,
         "recording": recorded.map(|messages| json!({ "file": args.record, "messages": messages })),
         "metrics": relations_metrics(args, &trajectory),
@@ -215,12 +201,6 @@ pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
         return Err(Unsuccessful("the robot was never found in the map".into()).into());
     }
     Ok(())
-}
-
-/// True for a path naming a `.skmap` file.
-pub(crate) fn is_skmap(path: &Path) -> bool {
-    path.extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("skmap"))
 }
 
 /// The session's settings ([`LidarSlamConfig::from_files`]), with `--particles` and `--seed`
@@ -246,25 +226,18 @@ fn session_config(args: &LidarArgs) -> anyhow::Result<LidarSlamConfig> {
     Ok(config)
 }
 
+/// The log `--log` names (a CARMEN file or a bag: `slamkit_io::lidar_log`), what was read
+/// from a bag and any damage told on the terminal.
 pub(crate) fn read_log(args: &LidarArgs) -> anyhow::Result<CarmenLog> {
     let path = &args.log;
-    let log = if slamkit_io::layout::is_bag(path) {
-        bag::read_log(path, &args.topics)?
-    } else {
-        anyhow::ensure!(
-            !args.topics.any(),
-            "--scan-topic and --odom-topic apply to bags; {} is not one",
-            path.display()
-        );
-        slamkit_io::carmen::read_carmen(path).context("reading log")?
-    };
-    if log.scans.is_empty() {
-        anyhow::bail!("{} holds no laser scan", path.display());
+    let file = read_lidar_log(path, &args.topics.scan_topics())?;
+    if let Some(description) = &file.description {
+        println!("bag {}: {description}", path.display());
     }
-    if let Some(steps_back) = log.time_order.describe() {
-        eprintln!("warning: {}: {steps_back}", path.display());
+    for warning in &file.warnings {
+        eprintln!("warning: {}: {warning}", path.display());
     }
-    Ok(log)
+    Ok(file.log)
 }
 
 /// A method's settings: its defaults, the profile's `[section]`, the `--config` file.
@@ -295,29 +268,9 @@ fn check_relations(args: &LidarArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Prints the frame counts, wall time and relations metric of `report`.
+/// Prints the frame counts, wall time and relations metric of `report`
+/// ([`run_report::summary`]) and where the outputs are.
 pub(crate) fn print_summary(out: &Path, report: &serde_json::Value) {
-    let f = &report["frames"];
-    println!(
-        "scans: {} read, {} processed, {} skipped, {} failed matches, {} unreadable log lines; \
-         {:.1} s",
-        f["read"],
-        f["processed"],
-        f["skipped"],
-        f["failed"],
-        f["unreadable_lines"],
-        report["wall_seconds"].as_f64().unwrap_or(f64::NAN)
-    );
-    let r = &report["metrics"]["relations"];
-    if !r.is_null() {
-        println!(
-            "relations metric: {:.4} ± {:.4} m, {:.3} ± {:.3} deg over {} relations",
-            r["trans_mean"].as_f64().unwrap_or(f64::NAN),
-            r["trans_std"].as_f64().unwrap_or(f64::NAN),
-            r["rot_mean_deg"].as_f64().unwrap_or(f64::NAN),
-            r["rot_std_deg"].as_f64().unwrap_or(f64::NAN),
-            r["count"]
-        );
-    }
+    println!("{}", run_report::summary(report));
     println!("outputs in {}", out.display());
 }

@@ -13,9 +13,7 @@
 use crate::commands::lidar::{
     load_config, print_summary, read_log, relations_metrics, LidarArgs, Method, OUTPUTS,
 };
-use crate::output::{
-    ensure_fits_memory, finish, merge_json, peak_rss_bytes, progress_bar, Unsuccessful,
-};
+use crate::output::{finish, merge_json, progress_bar, Unsuccessful};
 use serde_json::json;
 use slamkit_core::observation::time_ordered;
 use slamkit_core::Observation;
@@ -23,11 +21,9 @@ use slamkit_io::drone_csv::read_observations;
 use slamkit_io::output_folder::OutputFolder;
 use slamkit_io::write_tum;
 use slamkit_lidar::rbpf::RbpfConfig;
-use slamkit_map::{save_grid_files, OccupancyGridConfig};
-use slamkit_slam::drone::demo::MERGED_CLOUD_COMMENT;
 use slamkit_slam::drone::map::DroneMap;
 use slamkit_slam::drone::particle_filter::drone_pf_config;
-use slamkit_slam::lidar::preflight::particle_maps_min_bytes;
+use slamkit_slam::lidar::preflight::{ensure_fits_memory, particle_maps_min_bytes};
 use slamkit_slam::{DroneSlam, DroneSlamConfig, Session};
 use std::path::Path;
 use std::time::Instant;
@@ -69,16 +65,9 @@ pub fn run(args: &LidarArgs, ranges: &Path) -> anyhow::Result<()> {
 
     let trajectory = session.trajectory();
     write_tum(&out.join("trajectory.tum"), &trajectory)?;
-    let grid_config = OccupancyGridConfig::default();
-    let grids = session.layer_grids(&log.scans, &session.map_from_world(), &grid_config)?;
-    let layer_files = grids.write(out)?;
-    let cloud = session.merged_cloud();
-    slamkit_io::ply::write_ply(&out.join("cloud.ply"), &cloud, MERGED_CLOUD_COMMENT)?;
-    if let (Some(pf), Some(poses)) = (session.particle_filter(), session.pf_trajectory()) {
+    let (_, layer_files) = session.write_maps(out, &log.scans, &session.map_from_world())?;
+    if let Some(poses) = session.pf_trajectory() {
         write_tum(&out.join("trajectory_pf.tum"), &poses)?;
-        if let Some(grid) = pf.map() {
-            save_grid_files(grid, &out.join("map_pf"))?;
-        }
     }
     if let Some(path) = &args.save_map {
         session.save(path)?;
@@ -90,7 +79,6 @@ pub fn run(args: &LidarArgs, ranges: &Path) -> anyhow::Result<()> {
         "readings": readings.counts,
         "layers": layer_files,
         "wall_seconds": started.elapsed().as_secs_f64(),
-        "peak_rss_bytes": peak_rss_bytes(),
         "metrics": relations_metrics(args, &trajectory),
     });
     merge_json(&mut report, session.run_report(&log));

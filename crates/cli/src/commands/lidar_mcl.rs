@@ -6,7 +6,7 @@
 use crate::commands::lidar::{
     load_config, print_summary, read_log, relations_metrics, LidarArgs, OUTPUTS,
 };
-use crate::output::{finish, peak_rss_bytes, progress_bar, Unsuccessful};
+use crate::output::{finish, merge_json, progress_bar, Unsuccessful};
 use anyhow::Context;
 use serde_json::json;
 use slamkit_io::output_folder::OutputFolder;
@@ -15,6 +15,7 @@ use slamkit_lidar::mcl::{run_mcl, MclConfig};
 use slamkit_map::load_map_yaml;
 use slamkit_map::save_grid_files;
 use slamkit_slam::lidar::preflight::ensure_usable;
+use slamkit_slam::lidar::run_report;
 use std::path::Path;
 use std::time::Instant;
 
@@ -42,29 +43,16 @@ pub fn run_localization(args: &LidarArgs, map_path: &Path) -> anyhow::Result<()>
 
     slamkit_io::trajectory_file::write_tum(&out.join("trajectory.tum"), &result.trajectory)?;
     save_grid_files(&map, &out.join("map"))?;
-    let s = &result.stats;
-    let report = json!({
+    let mut report = json!({
         "input": args.log,
         "map": map_path,
-        "method": "mcl",
-        "config": config,
-        "stats": s,
-        "final_estimate": result.estimates.last().copied().flatten(),
-        "frames": {
-            "read": log.scans.len(),
-            "processed": s.updates,
-            "skipped": s.scans_skipped,
-            "failed": 0,
-            "unreadable_lines": log.skipped.len(),
-        },
         "wall_seconds": started.elapsed().as_secs_f64(),
-        "timings_ms": result.timings.summary(),
-        "peak_rss_bytes": peak_rss_bytes(),
         "metrics": relations_metrics(args, &result.trajectory),
     });
+    merge_json(&mut report, run_report::mcl_report(&result, &config, &log));
     finish(folder, &report)?;
     print_summary(&args.out, &report);
-    match s.first_converged_scan {
+    match result.stats.first_converged_scan {
         Some(scan) => println!("converged at scan {scan}"),
         None => {
             return Err(Unsuccessful(

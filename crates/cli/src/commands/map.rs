@@ -130,7 +130,6 @@ fn merge(files: &[PathBuf], out: &Path) -> anyhow::Result<()> {
     report["config"] = serde_json::to_value(&config)?;
     report["wall_seconds"] = serde_json::json!(start.elapsed().as_secs_f64());
     report["timings_ms"] = serde_json::json!(outcome.timings.summary());
-    report["peak_rss_bytes"] = serde_json::json!(crate::output::peak_rss_bytes());
     crate::output::finish(folder, &report)?;
     let unmerged = outcome.unmerged();
     println!(

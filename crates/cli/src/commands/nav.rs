@@ -13,7 +13,7 @@
 //! `metrics.max_cross_track_m`, ...).
 
 use crate::commands::plan::parse_xy;
-use crate::output::{finish, peak_rss_bytes, Unsuccessful};
+use crate::output::{finish, Unsuccessful};
 use anyhow::Context;
 use nalgebra::Point2;
 use serde_json::json;
@@ -101,7 +101,6 @@ pub fn run(args: &NavArgs) -> anyhow::Result<()> {
         "metrics": o.metrics_json(),
         "timings_ms": o.timings.summary(),
         "wall_seconds": started.elapsed().as_secs_f64(),
-        "peak_rss_bytes": peak_rss_bytes(),
     });
     finish(folder, &report)?;
     println!("{}; written to {}", o.summary(), args.out.display());

@@ -6,31 +6,18 @@
 //! first and through unknown cells only when that fails. Writes `path.csv` (the waypoints),
 //! `map.png` (the path drawn on the map) and `report.json`.
 
-use crate::output::{finish, peak_rss_bytes};
+use crate::output::finish;
 use anyhow::Context;
 use clap::builder::{PossibleValuesParser, TypedValueParser};
 use nalgebra::Point2;
 use serde_json::json;
 use slamkit_io::image_writer::save_rgb_png;
 use slamkit_io::output_folder::OutputFolder;
-use slamkit_map::{load_map_yaml, TriGrid};
 use slamkit_nav::render::draw_path;
-use slamkit_nav::{plan_on_grid, GridPlanner, PlannedPath};
-use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use slamkit_nav::{plan_on_grid, GridPlanner};
+use slamkit_slam::map_file::export::load_planning_grid;
+use std::path::PathBuf;
 use std::time::Instant;
-
-/// The grid of a ROS map_server YAML (its known part), or of a `.skmap`
-/// ([`slamkit_slam::map_file::export::planning_grid`]).
-fn load_grid(path: &Path) -> anyhow::Result<TriGrid> {
-    if crate::commands::lidar::is_skmap(path) {
-        let file = slamkit_slam::map_file::MapFile::load(path)?;
-        let grid = slamkit_slam::map_file::export::planning_grid(&file, path)?;
-        return grid
-            .with_context(|| format!("a {} map without a grid to plan on", file.header.rig));
-    }
-    Ok(TriGrid::from_occupancy_grid(&load_map_yaml(path)?))
-}
 
 /// Arguments of `slamkit plan`.
 #[derive(Debug, clap::Args)]
@@ -85,8 +72,8 @@ pub fn run(args: &PlanArgs) -> anyhow::Result<()> {
     let started = Instant::now();
     let start = parse_xy(&args.start, "start")?;
     let goal = parse_xy(&args.goal, "goal")?;
-    let grid =
-        load_grid(&args.map).with_context(|| format!("reading map {}", args.map.display()))?;
+    let grid = load_planning_grid(&args.map)
+        .with_context(|| format!("reading map {}", args.map.display()))?;
     let folder = OutputFolder::create(&args.out, &["path.csv", "map.png", "report.json"])?;
     let out = folder.path();
     let inflated = grid.inflated(args.inflate_cells);
@@ -103,7 +90,9 @@ pub fn run(args: &PlanArgs) -> anyhow::Result<()> {
         )
     })?;
     let plan_ms = plan_started.elapsed().as_secs_f64() * 1e3;
-    write_path_csv(&out.join("path.csv"), &path)?;
+    let csv = out.join("path.csv");
+    std::fs::write(&csv, path.waypoints_csv())
+        .with_context(|| format!("writing {}", csv.display()))?;
     save_rgb_png(
         &out.join("map.png"),
         &draw_path(&grid, &inflated, &path.cells),
@@ -131,7 +120,6 @@ pub fn run(args: &PlanArgs) -> anyhow::Result<()> {
         },
         "timings": { "plan_ms": plan_ms },
         "wall_s": started.elapsed().as_secs_f64(),
-        "peak_rss_bytes": peak_rss_bytes(),
     });
     finish(folder, &report)?;
     if path.cells.len() == 1 {
@@ -153,15 +141,6 @@ pub fn run(args: &PlanArgs) -> anyhow::Result<()> {
         args.out.display()
     );
     Ok(())
-}
-
-/// Writes the waypoints as `x_m,y_m` lines under a header.
-fn write_path_csv(path: &Path, plan: &PlannedPath) -> anyhow::Result<()> {
-    let mut text = String::from("x_m,y_m\n");
-    for p in &plan.waypoints_m {
-        writeln!(text, "{},{}", p.x, p.y)?;
-    }
-    std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))
 }
 
 #[cfg(test)]

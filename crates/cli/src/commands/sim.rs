@@ -12,7 +12,7 @@
 //! 1.5 MB a frame). The same world, sensors, robot, duration and seed give the same files byte
 //! for byte.
 
-use crate::output::{finish, peak_rss_bytes};
+use crate::output::finish;
 use anyhow::Context;
 use serde_json::json;
 use slamkit_core::StageTimings;
@@ -113,7 +113,6 @@ pub fn run(args: &SimArgs) -> anyhow::Result<()> {
         "frames": counts_by_sensor(&written),
         "wall_seconds": started.elapsed().as_secs_f64(),
         "timings_ms": timings.summary(),
-        "peak_rss_bytes": peak_rss_bytes(),
     });
     finish(folder, &report)?;
     println!(

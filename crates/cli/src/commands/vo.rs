@@ -3,7 +3,7 @@
 //! cloud and report written to the output folder, and with `--save-map` the keyframes as a
 //! `.skmap` file.
 
-use crate::output::{finish, merge_json, peak_rss_bytes, progress_bar};
+use crate::output::{finish, merge_json, progress_bar};
 use anyhow::Context;
 use serde_json::json;
 use slamkit_io::output_folder::OutputFolder;
@@ -189,7 +189,6 @@ pub fn run(args: &VoArgs) -> anyhow::Result<()> {
         },
         "wall_seconds": started.elapsed().as_secs_f64(),
         "timings_ms": timings.summary(),
-        "peak_rss_bytes": peak_rss_bytes(),
         "metrics": metrics,
         "loop_closure": loop_closure,
         "frame_status": result.frames,

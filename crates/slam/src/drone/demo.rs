@@ -13,12 +13,11 @@ use super::kidnapped;
 use super::simulated::{flight_config, FlightErrors, SimulatedFlight};
 use crate::visual::simulated::run_simulated_rgbd;
 use crate::SlamError;
-use nalgebra::Point3;
 use serde_json::{json, Value};
 use slamkit_eval::plot::{plot_position_errors, positions, TopView};
 use slamkit_eval::report_html::{Figure, HtmlReport};
 use slamkit_io::write_tum;
-use slamkit_map::{save_grid_files, OccupancyGridConfig};
+
 use slamkit_sim::{SimConfig, Simulation, World};
 use std::path::{Path, PathBuf};
 
@@ -122,25 +121,14 @@ pub fn run_demo(
 
     write_tum(&out.join("trajectory.tum"), &icp.estimate)?;
     write_tum(&out.join("groundtruth.tum"), &run.ground_truth)?;
-    let grid_config = OccupancyGridConfig::default();
-    let grids = session.layer_grids(&run.scans, &flight.sim_from_slam, &grid_config)?;
-    let layer_files = grids.write(out)?;
+    let (grids, layer_files) = session.write_maps(out, &run.scans, &flight.sim_from_slam)?;
     let height = &config.layers.height;
     let layer_maps = grids.into_layer_maps();
     let ceiling_m = sim.world.height_m;
     let scans = session.scans();
     let layer_loc = kidnapped::relocalise(&run, scans, &layer_maps, height, ceiling_m, seed);
     drop(layer_maps);
-    let cloud: Vec<Point3<f64>> = session
-        .merged_cloud()
-        .iter()
-        .map(|p| flight.sim_from_slam * p)
-        .collect();
-    slamkit_io::ply::write_ply(&out.join("cloud.ply"), &cloud, MERGED_CLOUD_COMMENT)?;
     write_tum(&out.join("trajectory_pf.tum"), &pf.estimate)?;
-    if let Some(grid) = pf_filter.map() {
-        save_grid_files(grid, &out.join("map_pf"))?;
-    }
     let mut methods = Vec::new();
     for m in [icp, pf] {
         methods.push(plot_flight_errors(m, &run.ground_truth, out)?);
@@ -235,9 +223,6 @@ pub fn run_demo(
     )?;
     Ok(outcome)
 }
-
-/// The comment in the header of a drone's merged layer cloud (`cloud.ply`).
-pub const MERGED_CLOUD_COMMENT: &str = "slamkit: merged height-layer maps";
 
 /// Plots one method's position error against the truth as `out/errors_KEY.png`.
 fn plot_flight_errors(

@@ -4,7 +4,7 @@
 //! * [`ensure_usable`]: a log none of whose scans can be matched (every range negative: a dead
 //!   sensor) is an error, not a run that writes identity poses and scores them.
 //! * [`particle_maps_min_bytes`]: the memory the particle filter's maps need at the least,
-//!   measured on the log's own scans, for the caller to compare with the machine's.
+//!   measured on the log's own scans; [`ensure_fits_memory`] compares it with the machine's.
 
 use crate::SlamError;
 use slamkit_core::LaserScan;
@@ -74,6 +74,35 @@ pub fn particle_maps_min_bytes(config: &RbpfConfig, scans: &[LaserScan]) -> Opti
         })
         .max()?;
     Some(per_particle as u64 * config.particles as u64)
+}
+
+/// Refuses a run whose particle maps need more memory than this machine has
+/// ([`crate::memory::total_bytes`]), before it starts: `bytes` is the least they take
+/// ([`particle_maps_min_bytes`], `None` when unknown), shared by `particles` particles.
+///
+/// ```
+/// use slamkit_slam::lidar::preflight::ensure_fits_memory;
+/// assert!(ensure_fits_memory(Some(1 << 20), 30).is_ok());
+/// assert!(ensure_fits_memory(None, 30).is_ok());
+/// if slamkit_slam::memory::total_bytes().is_some() {
+///     let err = ensure_fits_memory(Some(u64::MAX), 100_000).unwrap_err();
+///     assert!(err.to_string().contains("use fewer particles"), "{err}");
+/// }
+/// ```
+pub fn ensure_fits_memory(bytes: Option<u64>, particles: usize) -> Result<(), SlamError> {
+    let (Some(bytes), Some(limit)) = (bytes, crate::memory::total_bytes()) else {
+        return Ok(());
+    };
+    if bytes <= limit {
+        return Ok(());
+    }
+    Err(SlamError::Config(format!(
+        "{particles} particles need at least {:.1} GB for their maps ({:.2} MB each: the grid \
+         tiles one scan covers), more than this machine's {:.1} GB of memory; use fewer particles",
+        bytes as f64 / 1e9,
+        bytes as f64 / particles.max(1) as f64 / 1e6,
+        limit as f64 / 1e9
+    )))
 }
 
 #[cfg(test)]

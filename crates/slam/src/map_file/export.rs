@@ -90,6 +90,26 @@ pub fn planning_grid(file: &MapFile, source: &Path) -> Result<Option<TriGrid>, S
     Ok(Some(TriGrid::from_occupancy_grid(&grid)))
 }
 
+/// The grid to plan in from the map file at `path`: a `.skmap` ([`planning_grid`]) or a ROS
+/// map_server YAML (its known part), as `slamkit plan --map` takes them.
+///
+/// # Errors
+/// As [`MapFile::load`] and [`planning_grid`]; [`SlamError::Map`] for a camera's map without
+/// a grid; [`SlamError::GridFile`] for a YAML map that cannot be read.
+pub fn load_planning_grid(path: &Path) -> Result<TriGrid, SlamError> {
+    if !super::is_skmap(path) {
+        let grid = slamkit_map::load_map_yaml(path)?;
+        return Ok(TriGrid::from_occupancy_grid(&grid));
+    }
+    let file = MapFile::load(path).map_err(decode_error(path))?;
+    planning_grid(&file, path)?.ok_or_else(|| {
+        SlamError::Map(format!(
+            "a {} map without a grid to plan on",
+            file.header.rig
+        ))
+    })
+}
+
 fn decode_error(source: &Path) -> impl Fn(MapFileError) -> SlamError + '_ {
     move |e| SlamError::MapFile {
         path: source.to_path_buf(),
