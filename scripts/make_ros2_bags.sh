@@ -6,7 +6,9 @@
 # the ROS 2 bags are compared with, into a ROS 1 bag again (`<name>_sorted.bag`): the same
 # messages in the order rosbags writes them (by record time), which is not the order the
 # original bags store them in. slamkit's `ros2_bags` tests (crates/cli/tests/ros2_bags.rs)
-# read them. Nothing here is committed.
+# read them. Also the first 60 frames of 7-Scenes RedKitchen as RGB-D camera bags (MCAP and
+# .db3) with a reference folder, by scripts/rgbd_to_ros2_bags.py (rosbags, Pillow to decode
+# the images), for the `vo_bags` tests (crates/cli/tests/vo_bags.rs). Nothing here is committed.
 #
 # Usage: scripts/make_ros2_bags.sh [OUT_DIR]      (default: target/ros2-bags)
 # Needs python3 with venv; installs rosbags into OUT_DIR/venv. Bags already converted are kept.
@@ -14,6 +16,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 ROSBAGS_VERSION=0.11.9
+PILLOW_VERSION=13.0.0
 out="${1:-target/ros2-bags}"
 data="${SLAMKIT_DATA:-}"
 if [ -z "$data" ]; then
@@ -23,10 +26,10 @@ fi
 mkdir -p "$out"
 venv="$out/venv"
 if [ ! -x "$venv/bin/rosbags-convert" ] ||
-    ! "$venv/bin/python" -c "import importlib.metadata as m, sys; sys.exit(m.version('rosbags') != '$ROSBAGS_VERSION')"; then
+    ! "$venv/bin/python" -c "import importlib.metadata as m, sys; sys.exit(m.version('rosbags') != '$ROSBAGS_VERSION' or m.version('pillow') != '$PILLOW_VERSION')"; then
     rm -rf "$venv"
     python3 -m venv "$venv"
-    "$venv/bin/pip" install --quiet --disable-pip-version-check "rosbags==$ROSBAGS_VERSION"
+    "$venv/bin/pip" install --quiet --disable-pip-version-check "rosbags==$ROSBAGS_VERSION" "pillow==$PILLOW_VERSION"
 fi
 
 for name in intel aces; do
@@ -49,4 +52,13 @@ for name in intel aces; do
         mv "$out/${name}_sorted.tmp.bag" "$out/${name}_sorted.bag"
     fi
 done
+rgbd="$data/rgbd/7scenes_redkitchen_frames_0000-0599"
+if [ ! -f "$out/redkitchen_db3/metadata.yaml" ]; then
+    if [ ! -d "$rgbd" ]; then
+        echo "make_ros2_bags: $rgbd missing" >&2
+        exit 1
+    fi
+    rm -rf "$out"/redkitchen_{ref,mcap,db3}
+    "$venv/bin/python" scripts/rgbd_to_ros2_bags.py "$rgbd" "$out" 60
+fi
 echo "make_ros2_bags: ROS 2 bags in $out (rosbags $ROSBAGS_VERSION)"

@@ -18,6 +18,7 @@ use slamkit_core::image::{GrayImage, Image, RgbImage};
 use slamkit_core::observation::{self, Observation};
 use slamkit_core::{Pose3, Trajectory};
 
+use crate::bag::{BagRgbd, RgbdTopics};
 use crate::error::IoError;
 use crate::image_io::{depth_to_metres, load_depth, load_gray, load_rgb};
 use crate::trajectory_file::write_tum;
@@ -162,6 +163,8 @@ pub enum DatasetFormat {
     Redwood,
     /// EuRoC MAV stereo (`cam0/`, `cam1/`).
     Euroc,
+    /// A ROS 1 or ROS 2 bag of an RGB-D camera's topics ([`crate::bag::rgbd`]).
+    RosBag,
 }
 
 impl FromStr for DatasetFormat {
@@ -192,10 +195,13 @@ pub enum Dataset {
     Rgbd(RgbdSequence),
     /// A stereo sequence (KITTI, EuRoC).
     Stereo(StereoSequence),
+    /// An RGB-D camera's recording in a bag.
+    RgbdBag(BagRgbd),
 }
 
 impl Dataset {
-    /// Opens the dataset folder `dir` in the given layout, with default reader settings.
+    /// Opens the dataset folder `dir` in the given layout, with default reader settings (a
+    /// bag's topics chosen by type: [`BagRgbd::open`] chooses them as asked).
     pub fn open(dir: &Path, format: DatasetFormat) -> Result<Self, IoError> {
         Ok(match format {
             DatasetFormat::Tum => Self::Rgbd(crate::tum_rgbd::open(dir, &Default::default())?),
@@ -203,7 +209,16 @@ impl Dataset {
             DatasetFormat::SevenScenes => Self::Rgbd(crate::seven_scenes::open(dir)?),
             DatasetFormat::Redwood => Self::Rgbd(crate::redwood::open(dir, &Default::default())?),
             DatasetFormat::Euroc => Self::Stereo(crate::euroc::open(dir)?),
+            DatasetFormat::RosBag => Self::open_bag(dir, &RgbdTopics::default())?,
         })
+    }
+
+    /// Opens the bag at `path` as an RGB-D camera's recording, its topics chosen as `topics`
+    /// asks ([`BagRgbd::open`]).
+    pub fn open_bag(path: &Path, topics: &RgbdTopics) -> Result<Self, IoError> {
+        BagRgbd::open(path, topics)
+            .map(Self::RgbdBag)
+            .map_err(|e| IoError::invalid("bag", e.to_string()))
     }
 
     /// Number of frames.
@@ -211,6 +226,7 @@ impl Dataset {
         match self {
             Self::Rgbd(s) => s.frames.len(),
             Self::Stereo(s) => s.frames.len(),
+            Self::RgbdBag(b) => b.frames.len(),
         }
     }
 
@@ -224,11 +240,13 @@ impl Dataset {
         match self {
             Self::Rgbd(s) => &s.root,
             Self::Stereo(s) => &s.root,
+            Self::RgbdBag(b) => &b.path,
         }
     }
 
     /// Frame `index` decoded into an [`Observation`] (`Rgbd` or `Stereo`); `None` past the
-    /// last frame.
+    /// last frame. A bag is read from its start up to the frame: [`Dataset::observations`]
+    /// reads all frames in one pass.
     ///
     /// # Errors
     /// The [`IoError`] of an image that cannot be read or decoded, naming the file.
@@ -254,14 +272,20 @@ impl Dataset {
                     })
                 })
             }
+            Self::RgbdBag(b) => b.observations().nth(index)?,
         })
     }
 
     /// Every frame in order, each decoded when the iterator reaches it (so decoding can run on
     /// its own thread, ahead of the consumer). A frame that cannot be decoded is an `Err` item
     /// and the iteration goes on with the next.
-    pub fn observations(&self) -> impl Iterator<Item = Result<Observation, IoError>> + Send + '_ {
-        (0..self.len()).map_while(|index| self.observation(index))
+    pub fn observations(
+        &self,
+    ) -> Box<dyn Iterator<Item = Result<Observation, IoError>> + Send + '_> {
+        match self {
+            Self::RgbdBag(b) => Box::new(b.observations()),
+            _ => Box::new((0..self.len()).map_while(|index| self.observation(index))),
+        }
     }
 
     /// Frame timestamps \[s\], in order.
@@ -269,6 +293,7 @@ impl Dataset {
         match self {
             Self::Rgbd(s) => s.frames.iter().map(|f| f.timestamp).collect(),
             Self::Stereo(s) => s.frames.iter().map(|f| f.timestamp).collect(),
+            Self::RgbdBag(b) => b.frames.iter().map(|f| f.timestamp).collect(),
         }
     }
 
@@ -277,6 +302,7 @@ impl Dataset {
         match self {
             Self::Rgbd(s) => s.ground_truth.as_ref(),
             Self::Stereo(s) => s.ground_truth.as_ref(),
+            Self::RgbdBag(_) => None,
         }
     }
 

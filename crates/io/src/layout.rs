@@ -8,7 +8,8 @@ use std::path::Path;
 /// The layout of the dataset folder `dir`, from the files each layout must hold (KITTI:
 /// `image_0/` and `calib.txt`; TUM: `rgb.txt` and `depth.txt`; EuRoC: `cam0/` and `cam1/`;
 /// Redwood: `color/` and `depth/`; 7-Scenes: `*.color.png` or `*.color.jpg` frames), checked
-/// in that order; `None` when it matches none.
+/// in that order after a bag ([`is_bag`]: a ROS 2 bag folder, or a bag file); `None` when it
+/// matches none.
 ///
 /// ```
 /// use slamkit_io::layout::detect_layout;
@@ -24,6 +25,9 @@ use std::path::Path;
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 pub fn detect_layout(dir: &Path) -> Result<Option<DatasetFormat>, IoError> {
+    if is_bag(dir) {
+        return Ok(Some(DatasetFormat::RosBag));
+    }
     let has = |p: &str| dir.join(p).exists();
     if has("image_0") && has("calib.txt") {
         return Ok(Some(DatasetFormat::Kitti));

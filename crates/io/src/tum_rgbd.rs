@@ -178,13 +178,18 @@ pub fn parse_file_list(path: &Path) -> Result<Vec<Stamped>, IoError> {
     Ok(list)
 }
 
-/// Pairs entries of `a` and `b` whose timestamps differ by at most `max_diff_s`, closest
-/// first, each used once (TUM `associate.py`); the pairs come back in `a`'s time order.
-pub fn associate<'a>(
-    a: &'a [Stamped],
-    b: &'a [Stamped],
+/// An entry of each list, paired.
+pub type Pair<'a, A, B> = (&'a (f64, A), &'a (f64, B));
+
+/// Pairs entries of `a` and `b` (a timestamp and what it stamps) whose timestamps differ by
+/// at most `max_diff_s`, closest first, each used once (TUM `associate.py`); the pairs come
+/// back in `a`'s time order. The bag reader pairs images with it too
+/// ([`crate::bag::rgbd`]).
+pub fn associate<'a, A, B>(
+    a: &'a [(f64, A)],
+    b: &'a [(f64, B)],
     max_diff_s: f64,
-) -> Vec<(&'a Stamped, &'a Stamped)> {
+) -> Vec<Pair<'a, A, B>> {
     let mut b_order: Vec<usize> = (0..b.len()).collect();
     b_order.sort_by(|&i, &j| b[i].0.total_cmp(&b[j].0));
     let b_times: Vec<f64> = b_order.iter().map(|&i| b[i].0).collect();

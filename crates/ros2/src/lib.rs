@@ -5,6 +5,7 @@
 //! them as they are.
 //!
 //! * [`lidar_node`]: `slamkit ros2 lidar` (2D lidar + wheel odometry).
+//! * [`lidar_run`]: its settings and session from a request, its output files and report.
 //! * [`pairing`]: live scans tied to odometry by the rule of the bag reader, in publication
 //!   order.
 //! * [`params`]: the ROS-style parameter file (`--params FILE.yaml`).
@@ -15,11 +16,13 @@
 
 pub mod grid_msg;
 pub mod lidar_node;
+pub mod lidar_run;
 pub mod msgs;
 pub mod pairing;
 pub mod params;
 
 pub use lidar_node::{run_lidar_node, LidarNodeConfig, LidarNodeRun, NodeMode, NodeStats};
+pub use lidar_run::{LidarNodeRequest, LidarNodeSetup};
 
 /// Why the node cannot run.
 #[derive(Debug, thiserror::Error)]

@@ -155,6 +155,8 @@ pub struct LidarNodeRun {
     pub scans: Vec<LaserScan>,
     /// Counters.
     pub stats: NodeStats,
+    /// Whether the node built a map or localised in a saved one.
+    pub mode: NodeMode,
 }
 
 /// A sample taken off a reader.
@@ -729,6 +731,7 @@ impl<'a> Core<'a> {
             session: self.session,
             scans: self.scans,
             stats: self.stats,
+            mode: self.config.mode,
         }
     }
 }

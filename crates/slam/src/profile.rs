@@ -56,7 +56,7 @@ pub fn layout_profile(format: DatasetFormat) -> Option<&'static str> {
     match format {
         DatasetFormat::Kitti | DatasetFormat::Euroc => Some("stereo"),
         DatasetFormat::SevenScenes => Some("kinect-v1"),
-        DatasetFormat::Tum | DatasetFormat::Redwood => None,
+        DatasetFormat::Tum | DatasetFormat::Redwood | DatasetFormat::RosBag => None,
     }
 }
 

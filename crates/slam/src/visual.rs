@@ -601,6 +601,10 @@ pub fn rig_of(dataset: &Dataset) -> Rig {
             color: s.color_camera.intrinsics,
             depth: s.depth_camera.intrinsics,
         },
+        Dataset::RgbdBag(b) => Rig::Rgbd {
+            color: b.camera.intrinsics,
+            depth: b.camera.intrinsics,
+        },
         Dataset::Stereo(s) => Rig::Stereo {
             left: s.left_camera.intrinsics,
             baseline_m: s.baseline_m(),

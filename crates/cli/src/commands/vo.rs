@@ -6,6 +6,7 @@
 use crate::output::{finish, merge_json, progress_bar};
 use anyhow::Context;
 use serde_json::json;
+use slamkit_io::bag::RgbdTopics;
 use slamkit_io::output_folder::OutputFolder;
 use slamkit_io::{Dataset, DatasetFormat as IoFormat};
 use slamkit_slam::profile::layout_profile;
@@ -52,8 +53,11 @@ pub enum Frontend {
 /// Arguments of `slamkit vo`.
 #[derive(Debug, clap::Args)]
 pub struct VoArgs {
-    /// Dataset folder.
+    /// Dataset folder, or a ROS 1 / ROS 2 bag of an RGB-D camera.
     pub dataset_dir: PathBuf,
+    /// The bag's topics, when the input is a bag.
+    #[command(flatten)]
+    pub topics: CameraTopicArgs,
     /// Folder layout; told from the folder's content when omitted.
     #[arg(long)]
     pub format: Option<DatasetFormat>,
@@ -88,6 +92,20 @@ pub struct VoArgs {
     pub out: PathBuf,
 }
 
+/// The camera topics of a bag (chosen by type and encoding when there is one of each).
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct CameraTopicArgs {
+    /// Topic of the colour images (`sensor_msgs/Image`: rgb8, bgr8, mono8) in a bag.
+    #[arg(long)]
+    pub rgb_topic: Option<String>,
+    /// Topic of the depth images registered to colour (16UC1 mm, 32FC1 m) in a bag.
+    #[arg(long)]
+    pub depth_topic: Option<String>,
+    /// Topic of the colour camera's `sensor_msgs/CameraInfo` in a bag.
+    #[arg(long)]
+    pub camera_info_topic: Option<String>,
+}
+
 /// Runs `slamkit vo`.
 pub fn run(args: &VoArgs) -> anyhow::Result<()> {
     let started = Instant::now();
@@ -110,8 +128,25 @@ pub fn run(args: &VoArgs) -> anyhow::Result<()> {
             parent.display()
         );
     }
-    let dataset = Dataset::open(&args.dataset_dir, format)
-        .with_context(|| format!("opening {}", args.dataset_dir.display()))?;
+    let t = &args.topics;
+    let topics = RgbdTopics {
+        rgb: t.rgb_topic.clone(),
+        depth: t.depth_topic.clone(),
+        camera_info: t.camera_info_topic.clone(),
+    };
+    anyhow::ensure!(
+        format == IoFormat::RosBag || topics == RgbdTopics::default(),
+        "the topic options apply to bags; {} is not one",
+        args.dataset_dir.display()
+    );
+    let dataset = match format {
+        IoFormat::RosBag => Dataset::open_bag(&args.dataset_dir, &topics),
+        _ => Dataset::open(&args.dataset_dir, format),
+    };
+    let dataset = dataset.with_context(|| format!("opening {}", args.dataset_dir.display()))?;
+    if let Dataset::RgbdBag(bag) = &dataset {
+        println!("bag {}: {}", args.dataset_dir.display(), bag.describe());
+    }
     anyhow::ensure!(
         !dataset.is_empty(),
         "{} holds no frame",

@@ -25,7 +25,9 @@
 //! * [`info`]: topics, types, counts and time span (`slamkit bag info`);
 //! * [`scans`]: a 2D lidar log from a bag: scans with odometry attached and the laser's
 //!   mounting from `/tf_static`, the same [`crate::carmen::CarmenLog`] a CARMEN log gives, so
-//!   that sessions do not know bags exist.
+//!   that sessions do not know bags exist;
+//! * [`rgbd`]: an RGB-D camera's frames from a bag (colour and depth images paired by time,
+//!   the camera from `CameraInfo`), the frames a dataset folder gives.
 
 pub mod cdr;
 pub mod chunk;
@@ -37,6 +39,7 @@ pub mod mcap_file;
 pub mod messages;
 pub mod reader;
 pub mod record;
+pub mod rgbd;
 pub mod ros1;
 pub mod ros2;
 pub mod scans;
@@ -47,6 +50,7 @@ pub mod wire;
 pub use info::{bag_info, BagFormat, BagInfo};
 pub use reader::{Bag, Order};
 pub use record::RecordError;
+pub use rgbd::{BagRgbd, RgbdTopics};
 pub use scans::{read_scan_log, BagScanLog, ScanTopics};
 pub use source::{open, MessageSource};
 

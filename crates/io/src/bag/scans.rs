@@ -173,7 +173,7 @@ pub fn scan_log<S: MessageSource + ?Sized>(
 }
 
 /// The topic of type `M`: the one asked for (checked), else the only one of that type.
-fn choose_topic<M: RosMessage, S: MessageSource + ?Sized>(
+pub(crate) fn choose_topic<M: RosMessage, S: MessageSource + ?Sized>(
     bag: &S,
     asked: Option<&str>,
     flag: &str,
@@ -220,7 +220,8 @@ fn choose_topic<M: RosMessage, S: MessageSource + ?Sized>(
     }
 }
 
-fn topic_list<S: MessageSource + ?Sized>(bag: &S) -> String {
+/// The bag's topics and their types, for errors.
+pub(crate) fn topic_list<S: MessageSource + ?Sized>(bag: &S) -> String {
     let mut topics: Vec<String> = bag
         .topics()
         .values()
