@@ -14,12 +14,9 @@
 
 use crate::commands::plan::parse_xy;
 use crate::output::{finish, Unsuccessful};
-use anyhow::Context;
 use nalgebra::Point2;
 use serde_json::json;
-use slamkit_io::image_writer::save_rgb_png;
 use slamkit_io::output_folder::OutputFolder;
-use slamkit_io::write_tum;
 use slamkit_sim::World;
 use slamkit_slam::ground_robot::closed_loop::{run_nav_loop, NavLoopConfig};
 use slamkit_slam::profile::settings;
@@ -85,13 +82,7 @@ pub fn run(args: &NavArgs) -> anyhow::Result<()> {
     let folder = OutputFolder::create(&args.out, OUTPUTS)?;
     let out = folder.path();
     let outcome = run_nav_loop(world, goal, args.seed, &config)?;
-    write_tum(&out.join("trajectory.tum"), &outcome.estimate)?;
-    write_tum(&out.join("groundtruth.tum"), &outcome.ground_truth)?;
-    save_rgb_png(&out.join("map.png"), &outcome.map_image(&config))?;
-    outcome.map.save(&out.join("map.skmap"))?;
-    let csv = out.join("frames.csv");
-    std::fs::write(&csv, outcome.frames_csv())
-        .with_context(|| format!("writing {}", csv.display()))?;
+    outcome.write_run_files(out, &config)?;
     let o = &outcome;
     let report = json!({
         "input": { "world": world_name, "seed": args.seed, "goal_m": [goal.x, goal.y] },

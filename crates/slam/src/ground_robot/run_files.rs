@@ -1,12 +1,37 @@
-//! What a closed-loop run leaves for people and scripts to read: one CSV line per camera frame
-//! and the metrics of `report.json` (`slamkit nav` writes both).
+//! What a closed-loop run leaves for people and scripts to read: its files (trajectories, the
+//! map as an image and a map file, one CSV line per camera frame) and the metrics of
+//! `report.json` (`slamkit nav` writes them all).
 
-use super::closed_loop::NavOutcome;
+use super::closed_loop::{NavLoopConfig, NavOutcome};
+use crate::SlamError;
 use serde_json::{json, Value};
 use slamkit_core::Pose2;
+use slamkit_io::image_writer::save_rgb_png;
+use slamkit_io::write_tum;
 use slamkit_vo::FrameStatus;
+use std::path::Path;
 
 impl NavOutcome {
+    /// Writes the run's files into `out`: `trajectory.tum` (the camera session's estimate),
+    /// `groundtruth.tum`, `map.png` (the floor grid with the path driven, [`Self::map_image`]),
+    /// `map.skmap` (the map a later run can plan and localise in) and `frames.csv`
+    /// ([`Self::frames_csv`]).
+    pub fn write_run_files(&self, out: &Path, config: &NavLoopConfig) -> Result<(), SlamError> {
+        write_tum(&out.join("trajectory.tum"), &self.estimate)?;
+        write_tum(&out.join("groundtruth.tum"), &self.ground_truth)?;
+        save_rgb_png(&out.join("map.png"), &self.map_image(config))?;
+        let map_path = out.join("map.skmap");
+        self.map
+            .save(&map_path)
+            .map_err(|source| SlamError::MapFile {
+                path: map_path.clone(),
+                source,
+            })?;
+        let csv = out.join("frames.csv");
+        std::fs::write(&csv, self.frames_csv())
+            .map_err(|error| SlamError::Io(slamkit_io::IoError::Io { path: csv, error }))
+    }
+
     /// `frames.csv`: one line per camera frame: time, true and estimated `x, y, yaw` (m,
     /// degrees; empty when VO failed), VO's status, inliers, correspondences and failure
     /// reason.
