@@ -45,7 +45,8 @@ enum Request {
         timestamp: f64,
         world_from_tracked: Pose3,
         place: Option<PlaceFeatures>,
-        joined: Joined,
+        // boxed: a relocalisation's verified loop is most of the message
+        joined: Box<Joined>,
     },
     /// Answered once every request before it is done.
     Flush(Sender<()>),
@@ -101,7 +102,7 @@ impl LoopThread {
             timestamp,
             world_from_tracked,
             place,
-            joined,
+            joined: Box::new(joined),
         };
         let sent = self.sender.as_ref().map(|s| s.send(request).is_ok());
         if sent == Some(false) {
@@ -191,7 +192,7 @@ fn serve(
                         timestamp,
                         newest_from_then * world_from_tracked,
                         place,
-                        joined,
+                        *joined,
                     );
                 if let Some(c) = correction {
                     corrections.push(c);
