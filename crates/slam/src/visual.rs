@@ -9,8 +9,9 @@
 //! own ([`point_map`]).
 //!
 //! With [`VoConfig::loop_closure`] on (`slamkit vo --slam`) the session is visual SLAM: its
-//! keyframes, map points, place index and pose graph (module `loop_closing`) close loops and
-//! move the tracking state with the corrected map; [`VisualSlam::corrected_trajectory`] is then
+//! keyframes, map points, place index and pose graph (module `loop_closing`) close loops on a
+//! thread of their own (module `loop_thread`), and the tracker moves its state with the
+//! corrected map before the next frame it tracks; [`VisualSlam::corrected_trajectory`] is then
 //! the final trajectory (frames move with their keyframes) and [`VisualSlam::loop_closures`]
 //! what was closed. The world point map and the map file's keyframes keep the poses they were
 //! given when tracked.
@@ -36,6 +37,7 @@
 mod in_map;
 pub mod keyframes;
 mod loop_closing;
+mod loop_thread;
 pub mod pipeline;
 pub mod point_map;
 mod prepare;
@@ -63,7 +65,8 @@ use crate::profile::layout_profile;
 use crate::session::{MapChange, Session, TrackingStatus, Update};
 use crate::SlamError;
 use in_map::MapLocaliser;
-use loop_closing::{Joined, LoopClosing};
+use loop_closing::Joined;
+use loop_thread::LoopThread;
 use point_map::PointMapper;
 use prepare::Prepared;
 
@@ -116,8 +119,8 @@ pub struct VisualSlam {
     next_index: usize,
     /// The keyframes for the map file.
     map: VisualMap,
-    /// Place recognition and loop closure (`loop_closure.enabled`).
-    loops: Option<LoopClosing>,
+    /// Place recognition and loop closure on their thread (`loop_closure.enabled`).
+    loops: Option<LoopThread>,
     /// The saved map the session localises in ([`Self::localising_in`]).
     in_map: Option<MapLocaliser>,
 }
@@ -164,7 +167,8 @@ pub struct VisualUpdate {
 pub struct VisualOutput {
     /// The world point map (`None` with [`PointMapping::Off`]).
     pub point_map: Option<VoxelMap>,
-    /// CPU time per stage \[ms\]: `prepare`, `track`, `frame` (the two together) and `map`.
+    /// CPU time per stage \[ms\]: `prepare`, `track`, `frame` (the two together), `map` and
+    /// `loop_closing` (per frame, on their threads).
     pub timings: StageTimings,
     /// Frame counters.
     pub stats: VisualStats,
@@ -212,7 +216,7 @@ impl VisualSlam {
             loops: config
                 .loop_closure
                 .enabled
-                .then(|| LoopClosing::new(&config.loop_closure))
+                .then(|| LoopThread::start(&config.loop_closure))
                 .transpose()?,
             in_map: None,
         })
@@ -286,6 +290,8 @@ impl VisualSlam {
         self.next_index = self.next_index.max(index + 1);
         self.stats.frames += 1;
         let start = ThreadTime::now();
+        // the safe point: the map moved by the loops closed since the last frame
+        let closed = self.take_correction();
         let keyframes_before = self.odometry.keyframes();
         let searching = self.searching(timestamp);
         let mut joined = Joined::Tracked;
@@ -321,7 +327,7 @@ impl VisualSlam {
         if matches!(status, FrameStatus::Initialised { .. }) && joined == Joined::Tracked {
             joined = Joined::Restarted;
         }
-        let closed = self.close_loops(timestamp, &status, place, joined.clone());
+        self.close_loops(timestamp, &status, place, joined.clone());
         let track_ms = start.elapsed().as_secs_f64() * 1e3;
         self.timings.record("prepare", prepare_ms);
         self.timings.record("track", track_ms);
@@ -413,7 +419,10 @@ impl VisualSlam {
         if let Some(map) = &self.in_map {
             return map.locate(place).map(|pose| (None, pose));
         }
-        let (found, pose) = self.loops.as_mut()?.relocalise(place)?;
+        let found = self.loops.as_mut()?.relocalise(place);
+        // the pose found is in the newest map: the tracker follows it there first
+        self.take_correction();
+        let (found, pose) = found?;
         Some((Some(found), pose))
     }
 
@@ -431,44 +440,48 @@ impl VisualSlam {
         }
     }
 
-    /// Hands a tracked frame to loop closing (when on); when a loop closed, moves the tracking
-    /// state with the corrected map and says so.
+    /// Hands a tracked frame to the loop-closing thread (when on).
     fn close_loops(
         &mut self,
         timestamp: f64,
         status: &FrameStatus,
         place: Option<PlaceFeatures>,
         joined: Joined,
-    ) -> bool {
-        let Some(loops) = &mut self.loops else {
-            return false;
-        };
-        if matches!(status, FrameStatus::Failed(_)) {
-            return false;
-        }
-        match loops.add_frame(timestamp, self.odometry.pose(), place, joined) {
-            Some(corrected_from_world) => {
-                self.odometry.correct(&corrected_from_world);
-                true
+    ) {
+        if let Some(loops) = &mut self.loops {
+            if !matches!(status, FrameStatus::Failed(_)) {
+                loops.add_frame(timestamp, self.odometry.pose(), place, joined);
             }
-            None => false,
         }
     }
 
-    /// The trajectory of every tracked frame as loop closure left it (`None` when loop
-    /// closure is off: the poses of the updates are then final).
+    /// Moves the tracking state with the map when loops closed since the last call, and says
+    /// so.
+    fn take_correction(&mut self) -> bool {
+        let Some(corrected_from_world) = self.loops.as_mut().and_then(LoopThread::take_correction)
+        else {
+            return false;
+        };
+        self.odometry.correct(&corrected_from_world);
+        true
+    }
+
+    /// The trajectory of every tracked frame as loop closure left it, once the loop-closing
+    /// thread has taken every frame (`None` when loop closure is off: the poses of the
+    /// updates are then final).
     pub fn corrected_trajectory(&self) -> Option<Trajectory> {
         self.loops
             .as_ref()
-            .map(|l| l.trajectory(&self.tracked_from_camera))
+            .map(|l| l.state().trajectory(&self.tracked_from_camera))
     }
 
     /// The accepted loops, relative poses of the rig's reference camera, and the back end's
     /// counts (`None` when loop closure is off).
     pub fn loop_closures(&self) -> Option<(LoopStats, Vec<LoopClosure>)> {
-        self.loops
-            .as_ref()
-            .map(|l| (l.stats(), l.closures(&self.tracked_from_camera)))
+        self.loops.as_ref().map(|l| {
+            let state = l.state();
+            (state.stats(), state.closures(&self.tracked_from_camera))
+        })
     }
 
     /// Records the frame just tracked, at `pose`, as a keyframe of the map, its points moved
@@ -493,7 +506,7 @@ impl VisualSlam {
     /// localise in); otherwise the local map's keyframes as tracked.
     pub fn map(&self) -> VisualMap {
         match &self.loops {
-            Some(loops) => loops.visual_map(&self.tracked_from_camera),
+            Some(loops) => loops.state().visual_map(&self.tracked_from_camera),
             None => self.map.clone(),
         }
     }
@@ -503,17 +516,22 @@ impl VisualSlam {
         self.stats
     }
 
-    /// The current `world_from_camera` of the rig's reference camera.
+    /// The current `world_from_camera` of the rig's reference camera (with loop closure on,
+    /// in the map as the last correction the tracker took left it).
     pub fn pose(&self) -> Pose3 {
         self.odometry.pose() * self.tracked_from_camera
     }
 
-    /// Ends the session: waits for the point map to take every tracked frame.
+    /// Ends the session: waits for the point map and loop closing to take every tracked
+    /// frame.
     ///
     /// # Errors
-    /// [`SlamError::Thread`] when the mapping thread failed.
+    /// [`SlamError::Thread`] when the mapping or loop-closing thread failed.
     pub fn finish(self) -> Result<VisualOutput, SlamError> {
         let mut timings = self.timings;
+        if let Some(loops) = self.loops {
+            timings.merge(&loops.finish()?);
+        }
         let point_map = self.point_map.finish()?.map(|(map, map_timings)| {
             timings.merge(&map_timings);
             map

@@ -9,7 +9,9 @@
 use slamkit_testdata::data;
 use std::path::Path;
 
+use slamkit_core::{Observation, Trajectory};
 use slamkit_io::{Dataset, DatasetFormat};
+use slamkit_slam::map_file::Rig;
 use slamkit_slam::profile::Profile;
 use slamkit_slam::visual::{self, LoopStats, RunOptions, VisualSlam};
 use slamkit_vo::metrics::ClosureCheck;
@@ -121,5 +123,68 @@ fn kitti_06_clip_has_no_loop_to_close() {
         assert!(stats.keyframes >= 45, "{stats:?}");
         // measured 0.0747 / 0.1328 m, the same as without loop closure
         assert!(m.ate.rmse <= bound, "{frontend:?}: ATE {}", m.ate.rmse);
+    }
+}
+
+/// 7-Scenes RedKitchen 0-599 played forward, backward and forward again (frames renumbered
+/// 1/30 s apart), one [`visual::run`] per pass on the same session: the places of every pass
+/// are seen again by the next, so each pass closes loops, none wrong; the keyframes and the
+/// bytes of the map after each pass are printed (BENCHMARKS.md, "Visual SLAM": without
+/// keyframe culling the map grows with every pass).
+#[test]
+fn seven_scenes_played_three_times_closes_loops_on_every_revisit() {
+    let Some(dir) = data(
+        "seven_scenes_played_three_times_closes_loops_on_every_revisit",
+        "rgbd/7scenes_redkitchen_frames_0000-0599",
+    ) else {
+        return;
+    };
+    let dataset = Dataset::open(&dir, DatasetFormat::SevenScenes).unwrap();
+    let mut config = Profile::builtin("kinect-v1")
+        .unwrap()
+        .apply("vo", VoConfig::default())
+        .unwrap();
+    config.loop_closure.enabled = true;
+    let n = dataset.len();
+    let passes: [Vec<usize>; 3] = [
+        (0..n).collect(),
+        (0..n - 1).rev().collect(),
+        (1..n).collect(),
+    ];
+    let gt = dataset.ground_truth().unwrap();
+    let times = dataset.timestamps();
+    let mut truth = Trajectory::new();
+    let mut session = VisualSlam::new(&config, visual::rig_of(&dataset)).unwrap();
+    let mut accepted = 0;
+    for (pass, frames) in passes.iter().enumerate() {
+        let first = truth.len();
+        for (k, &i) in frames.iter().enumerate() {
+            let pose = gt.poses.iter().find(|p| p.timestamp == times[i]).unwrap();
+            truth.push((first + k) as f64 / 30.0, pose.pose);
+        }
+        let source = frames.iter().enumerate().map(|(k, &i)| {
+            dataset.observation(i).unwrap().map(|mut o| {
+                if let Observation::Rgbd(f) = &mut o {
+                    f.timestamp = (first + k) as f64 / 30.0;
+                }
+                o
+            })
+        });
+        let result = visual::run(&mut session, source, RunOptions::default(), |_| {}).unwrap();
+        let (stats, closures) = session.loop_closures().unwrap();
+        let check = visual::check_closures(&closures, &truth);
+        let file = session.map().to_map_file(Rig::Rgbd).unwrap();
+        let bytes: usize = file.sections.iter().map(|s| s.data.len()).sum();
+        let ate = evaluate(&result.trajectory, &truth).unwrap().ate.rmse;
+        eprintln!(
+            "pass {}: {} keyframes, {} map points, map {:.2} MiB, ATE {ate:.4} m, {stats:?}, {check:?}",
+            pass + 1,
+            stats.keyframes,
+            stats.map_points,
+            bytes as f64 / (1 << 20) as f64,
+        );
+        assert_eq!((check.checked, check.wrong), (stats.accepted, 0));
+        assert!(stats.accepted > accepted, "pass {}: {stats:?}", pass + 1);
+        accepted = stats.accepted;
     }
 }

@@ -420,7 +420,7 @@ impl LoopClosing {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use nalgebra::{Point3, Vector3};
     use rand::{Rng, SeedableRng};
@@ -489,13 +489,27 @@ mod tests {
     /// Drives 1.3 laps at 3° a frame with odometry drifting 0.15° of yaw a frame; returns
     /// the back end, the true poses and the odometry's.
     fn drive(seed: u64, aliased: bool) -> (LoopClosing, Vec<Pose3>, Vec<Pose3>) {
-        let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        let w = world(&mut rng, 1500, aliased);
         let mut loops = LoopClosing::new(&LoopClosureConfig {
             enabled: true,
             ..LoopClosureConfig::default()
         })
         .unwrap();
+        let (truth, odometry) = drive_with(seed, aliased, |t, pose, place, joined| {
+            loops.add_frame(t, pose, Some(place), joined)
+        });
+        (loops, truth, odometry)
+    }
+
+    /// The drive of [`drive`], each frame (time, odometry pose, features, how it is joined)
+    /// handed to `back_end`, which returns a correction of the world to apply to odometry;
+    /// the true poses and the odometry's.
+    pub(in crate::visual) fn drive_with(
+        seed: u64,
+        aliased: bool,
+        mut back_end: impl FnMut(f64, Pose3, PlaceFeatures, Joined) -> Option<Pose3>,
+    ) -> (Vec<Pose3>, Vec<Pose3>) {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let w = world(&mut rng, 1500, aliased);
         let (mut truth, mut odometry): (Vec<Pose3>, Vec<Pose3>) = (Vec::new(), Vec::new());
         let mut drifted = camera(0.0);
         for i in 0..156 {
@@ -512,13 +526,13 @@ mod tests {
             } else {
                 Joined::Tracked
             };
-            if let Some(correction) = loops.add_frame(f64::from(i), drifted, Some(place), joined) {
+            if let Some(correction) = back_end(f64::from(i), drifted, place, joined) {
                 drifted = correction * drifted;
             }
             truth.push(pose);
             odometry.push(drifted);
         }
-        (loops, truth, odometry)
+        (truth, odometry)
     }
 
     #[test]
