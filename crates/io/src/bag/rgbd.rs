@@ -243,7 +243,10 @@ impl BagRgbd {
         let read = super::open(&self.path).and_then(|mut bag| {
             bag.find_connections()?;
             bag.read_stored(&mut |conn: &Connection, msg| {
-                let (seen, want, colour) = if conn.topic == self.rgb_topic {
+                // Counted as the first read counted them: images of the topic.
+                let (seen, want, colour) = if !is_type::<ImageMsg>(conn) {
+                    return;
+                } else if conn.topic == self.rgb_topic {
                     (&mut seen_rgb, &want_rgb, true)
                 } else if conn.topic == self.depth_topic {
                     (&mut seen_depth, &want_depth, false)
