@@ -120,7 +120,7 @@ pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
     let config = session_config(args)?;
     let folder = OutputFolder::create(&args.out, OUTPUTS)?;
     let out = folder.path();
-    let log = read_log(args)?;
+    let log = read_log(&args.log, &args.topics)?;
     ensure_usable(&log.scans, &config.icp).context(args.log.display().to_string())?;
     let new_map = args.localize.is_none() && args.continue_map.is_none();
     let particle_maps_min_bytes = (new_map && config.method == LidarMethod::Rbpf)
@@ -246,13 +246,13 @@ fn session_config(args: &LidarArgs) -> anyhow::Result<LidarSlamConfig> {
     Ok(config)
 }
 
-pub(crate) fn read_log(args: &LidarArgs) -> anyhow::Result<CarmenLog> {
-    let path = &args.log;
+/// The scans (and odometry) of a CARMEN log, or of a ROS 1 bag's `topics`.
+pub(crate) fn read_log(path: &Path, topics: &TopicArgs) -> anyhow::Result<CarmenLog> {
     let log = if slamkit_io::layout::is_bag(path) {
-        bag::read_log(path, &args.topics)?
+        bag::read_log(path, topics)?
     } else {
         anyhow::ensure!(
-            !args.topics.any(),
+            !topics.any(),
             "--scan-topic and --odom-topic apply to bags; {} is not one",
             path.display()
         );

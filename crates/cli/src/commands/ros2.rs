@@ -11,8 +11,6 @@ use slamkit_ros2::{run_lidar_node, LidarNodeConfig, NodeMode};
 use slamkit_slam::lidar::LidarMap;
 use slamkit_slam::{LidarMethod, LidarSlam, LidarSlamConfig};
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
 use std::time::Instant;
 
 /// Arguments of `slamkit ros2`.
@@ -124,10 +122,7 @@ fn lidar(args: &LidarNodeArgs) -> anyhow::Result<()> {
         (None, None) => LidarSlam::new(config, Pose2::identity())?,
     };
     let folder = OutputFolder::create(&args.out, OUTPUTS)?;
-    let stop = Arc::new(AtomicBool::new(false));
-    let flag = Arc::clone(&stop);
-    ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed))
-        .context("installing the Ctrl-C handler")?;
+    let stop = crate::output::stop_flag()?;
     println!(
         "slamkit ros2 lidar: {} ({}) -> {}, {} on /tf, {}; Ctrl-C stops and saves to {}",
         node.scan_topic,
