@@ -95,7 +95,7 @@ impl MergerNode {
     pub fn start(config: MergerNodeConfig) -> Result<Self, FleetError> {
         check_name(&config.fleet)?;
         config.merge.validate()?;
-        if !(config.merge_every_s >= 0.0) {
+        if config.merge_every_s.is_nan() || config.merge_every_s < 0.0 {
             return Err(FleetError::Slam(slamkit_slam::SlamError::Config(format!(
                 "merge_every_s {} must be >= 0",
                 config.merge_every_s

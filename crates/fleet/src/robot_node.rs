@@ -101,7 +101,7 @@ impl RobotNode {
                     .into(),
             ));
         }
-        if !(config.rate >= 0.0 && config.rate.is_finite()) {
+        if !config.rate.is_finite() || config.rate < 0.0 {
             return Err(config_error(format!("rate {} must be >= 0", config.rate)));
         }
         if let Some((p, _)) = config.loss {
