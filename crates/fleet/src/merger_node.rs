@@ -31,6 +31,9 @@ const STEP: Duration = Duration::from_millis(100);
 /// How long, when stopping, the merger goes on fetching what the robots say they sent.
 const FINAL_FETCH: Duration = Duration::from_secs(15);
 
+/// The latest merged publications (key, bytes), shared with the queryable that answers them.
+type Publications = Arc<Mutex<Vec<(String, Vec<u8>)>>>;
+
 /// Settings of a merger process.
 #[derive(Debug, Clone)]
 pub struct MergerNodeConfig {
@@ -75,7 +78,7 @@ pub struct MergerNode {
     config: MergerNodeConfig,
     merger: Merger,
     /// The latest merged publications, answered to queries.
-    latest: Arc<Mutex<Vec<(String, Vec<u8>)>>>,
+    latest: Publications,
     _queryable: zenoh::query::Queryable<()>,
     merged: Option<Merged>,
     last_merge: Option<Instant>,
@@ -102,7 +105,7 @@ impl MergerNode {
             ))));
         }
         let session = config.peer.open()?;
-        let latest: Arc<Mutex<Vec<(String, Vec<u8>)>>> = Arc::default();
+        let latest: Publications = Arc::default();
         let served = Arc::clone(&latest);
         let queryable = session
             .declare_queryable(format!("slamkit/{}/merged/**", config.fleet))
