@@ -41,6 +41,8 @@ enum Command {
     Nav(commands::nav::NavArgs),
     /// A ROS 2 node (no ROS install needed): live topics in, map, tf and pose out.
     Ros2(commands::ros2::Ros2Args),
+    /// Many robots, one map, over Zenoh: a robot playing a log, or the merger.
+    Fleet(commands::fleet::FleetArgs),
 }
 
 fn main() -> ExitCode {
@@ -56,6 +58,7 @@ fn main() -> ExitCode {
         Command::Sim(args) => commands::sim::run(args),
         Command::Nav(args) => commands::nav::run(args),
         Command::Ros2(args) => commands::ros2::run(args),
+        Command::Fleet(args) => commands::fleet::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

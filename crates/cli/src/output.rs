@@ -4,6 +4,8 @@
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use slamkit_io::output_folder::OutputFolder;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 
 /// Formats an error and its causes on one line: `outer: cause: root cause`.
 pub fn error_chain(err: &anyhow::Error) -> String {
@@ -41,6 +43,15 @@ pub fn progress_bar(len: u64, what: &str) -> ProgressBar {
     bar.set_style(style);
     bar.set_message(what.to_owned());
     bar
+}
+
+/// A flag set by Ctrl-C or SIGTERM, for a command that runs until stopped.
+pub fn stop_flag() -> anyhow::Result<Arc<AtomicBool>> {
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = Arc::clone(&stop);
+    ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed))
+        .context("installing the Ctrl-C handler")?;
+    Ok(stop)
 }
 
 /// Ends a run: writes `report`, with the run's peak memory as `peak_rss_bytes`, as pretty JSON

@@ -1,24 +1,34 @@
 //! slamkit-fleet: many robots, one map. Each robot publishes its map updates
 //! ([`slamkit_slam::map_updates`]) on Zenoh and answers queries for the ones a peer missed; a
 //! merger collects every robot's updates, fetches what it lacks by sequence number, and merges
-//! the robots' maps ([`slamkit_slam::merge`]) (issue 22, item 2).
+//! the robots' maps ([`slamkit_slam::merge`]) (issue 22, items 2 and 4).
 //!
 //! * [`keys`]: the key expressions, `slamkit/<fleet>/<robot>/{keyframes,edges,status}`.
 //! * [`peer`]: opening a Zenoh peer on explicit endpoints, multicast scouting off.
 //! * [`robot`]: [`RobotPublisher`], one robot's side: publish, keep, answer queries.
 //! * [`merger`]: [`Merger`], the receiving side: subscribe, fetch what is missing, merge.
+//! * [`store`]: [`store::StoreFile`], a robot's messages on disk, so a restarted robot process
+//!   resumes from its sequence numbers.
+//! * [`robot_node`] and [`merger_node`]: a robot and the merger as processes run them
+//!   (`slamkit fleet robot|merger`): a log played at a chosen rate, merges published on
+//!   `slamkit/<fleet>/merged/{map,report}`, the outputs and reports.
 //!
 //! All networking is Zenoh's (pub/sub and queries over its TCP transport); nothing here opens
 //! a socket itself. Nothing here prints.
 
 pub mod keys;
 pub mod merger;
+pub mod merger_node;
 pub mod peer;
 pub mod robot;
+pub mod robot_node;
+pub mod store;
 
 pub use merger::Merger;
+pub use merger_node::{MergerNode, MergerNodeConfig};
 pub use peer::PeerConfig;
 pub use robot::RobotPublisher;
+pub use robot_node::{RobotNode, RobotNodeConfig};
 
 /// Why a fleet operation failed.
 #[derive(Debug, thiserror::Error)]
@@ -40,6 +50,14 @@ pub enum FleetError {
         key: String,
         /// What was wrong.
         source: slamkit_slam::map_file::MapFileError,
+    },
+    /// A robot's store file could not be read or written.
+    #[error("store {}: {source}", path.display())]
+    Store {
+        /// The file.
+        path: std::path::PathBuf,
+        /// What failed.
+        source: std::io::Error,
     },
     /// The SLAM side refused (a message that does not fit the map, a merge).
     #[error(transparent)]

@@ -1,22 +1,34 @@
 //! [`RobotPublisher`]: one robot's side of the fleet. It publishes each map update on its key,
-//! keeps every keyframes and edges message it made, and answers a query for any of them by
-//! sequence number, so a peer that missed some (a dropped packet, a reconnect, a late start)
-//! fetches them: nothing is lost while the robot runs.
+//! keeps every keyframes and edges message it made (in memory, and in a [`StoreFile`] when
+//! given one, so a restarted robot process still has them), and answers a query for any of
+//! them by sequence number, or for its latest status, so a peer that missed some (a dropped
+//! packet, a reconnect, a late start, a restarted merger) fetches them: nothing sent is lost.
 
 use crate::keys::{check_name, key_of, robot_keys};
+use crate::store::StoreFile;
 use crate::FleetError;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use slamkit_slam::map_updates::{MapUpdate, Stream};
+use std::path::Path;
 use std::sync::{Arc, Mutex};
 use zenoh::Wait;
 
 /// The query parameter listing the sequence numbers wanted, comma-separated:
 /// `slamkit/<fleet>/<robot>/**?seqs=3,5,9`.
 pub const SEQS_PARAMETER: &str = "seqs";
+/// The query parameter asking for a robot's latest status: `slamkit/<fleet>/*/**?status`.
+pub const STATUS_PARAMETER: &str = "status";
 
-/// Messages kept for queries: key and bytes, by sequence number.
-type Store = Arc<Mutex<Vec<(String, Vec<u8>)>>>;
+/// What a robot serves to queries: its messages (key and bytes, by sequence number) and its
+/// latest status.
+#[derive(Default)]
+struct Served {
+    messages: Vec<(String, Vec<u8>)>,
+    status: Option<(String, Vec<u8>)>,
+}
+
+type Store = Arc<Mutex<Served>>;
 
 /// Publishes one robot's map updates and answers queries for them.
 pub struct RobotPublisher {
@@ -24,10 +36,12 @@ pub struct RobotPublisher {
     fleet: String,
     robot: String,
     store: Store,
+    file: Option<StoreFile>,
     _queryable: zenoh::query::Queryable<()>,
     /// Fraction of publications dropped on purpose (tests), and the draws.
     loss: Option<(f64, ChaCha8Rng)>,
     sent_bytes: usize,
+    sent_messages: usize,
     dropped: usize,
 }
 
@@ -45,15 +59,17 @@ impl RobotPublisher {
         let queryable = session
             .declare_queryable(robot_keys(fleet, robot))
             .callback(move |query| {
-                let wanted = query
-                    .parameters()
+                let parameters = query.parameters();
+                let wanted = parameters
                     .get(SEQS_PARAMETER)
                     .map(parse_seqs)
                     .unwrap_or_default();
+                let with_status = parameters.contains_key(STATUS_PARAMETER);
                 let replies: Vec<(String, Vec<u8>)> = match served.lock() {
-                    Ok(store) => wanted
+                    Ok(served) => wanted
                         .iter()
-                        .filter_map(|s| store.get(usize::try_from(*s).ok()?).cloned())
+                        .filter_map(|s| served.messages.get(usize::try_from(*s).ok()?).cloned())
+                        .chain(served.status.clone().filter(|_| with_status))
                         .collect(),
                     Err(_) => Vec::new(),
                 };
@@ -69,9 +85,11 @@ impl RobotPublisher {
             fleet: fleet.to_string(),
             robot: robot.to_string(),
             store,
+            file: None,
             _queryable: queryable,
             loss: None,
             sent_bytes: 0,
+            sent_messages: 0,
             dropped: 0,
         })
     }
@@ -83,45 +101,118 @@ impl RobotPublisher {
         self
     }
 
-    /// Publishes `update` (a keyframes or edges message is kept for queries first).
+    /// Keeps every message in the store file at `path` too, and serves the messages it
+    /// already holds (those of this robot's run before a restart): [`publish`](Self::publish)
+    /// then skips the messages up to [`stored`](Self::stored) and publishes from there on.
     ///
     /// # Errors
-    /// [`FleetError::Message`] for an update that cannot be encoded or is out of sequence,
-    /// [`FleetError::Zenoh`] when Zenoh refuses the publication.
-    pub fn publish(&mut self, update: &MapUpdate) -> Result<(), FleetError> {
+    /// [`FleetError::Store`] when the file cannot be read, [`FleetError::Message`] for a record
+    /// that is not a message of this robot's sequence.
+    pub fn with_store_file(mut self, path: &Path) -> Result<Self, FleetError> {
+        let (file, held) = StoreFile::open(path)?;
+        let mut messages = Vec::with_capacity(held.len());
+        for (i, bytes) in held.into_iter().enumerate() {
+            let wrong = |source| FleetError::Message {
+                key: format!("{} record {i}", path.display()),
+                source,
+            };
+            let update = MapUpdate::from_bytes(&bytes).map_err(wrong)?;
+            if update.seq != i as u64 || update.stream() == Stream::Status {
+                return Err(wrong(malformed(format!(
+                    "a {} message numbered {} in place {i}",
+                    update.stream().name(),
+                    update.seq
+                ))));
+            }
+            messages.push((key_of(&self.fleet, &self.robot, &update), bytes));
+        }
+        self.lock()?.messages = messages;
+        self.file = Some(file);
+        Ok(self)
+    }
+
+    /// Publishes `update`; returns whether it was new. A keyframes or edges message is kept
+    /// (and stored, with a store file) before it goes out; one the robot had sent before a
+    /// restart must be the same as then, and is not sent again.
+    ///
+    /// # Errors
+    /// [`FleetError::Message`] for an update that cannot be encoded, is out of sequence, or
+    /// differs from the one of its number sent before a restart (another log or other
+    /// settings); [`FleetError::Store`] when it cannot be stored; [`FleetError::Zenoh`] when
+    /// Zenoh refuses the publication.
+    pub fn publish(&mut self, update: &MapUpdate) -> Result<bool, FleetError> {
         let key = key_of(&self.fleet, &self.robot, update);
         let bytes = update.to_bytes().map_err(|source| FleetError::Message {
             key: key.clone(),
             source,
         })?;
-        if update.stream() != Stream::Status {
-            let mut store = self
-                .store
-                .lock()
-                .map_err(|_| FleetError::Zenoh("the message store was poisoned".into()))?;
-            if update.seq != store.len() as u64 {
+        if update.stream() == Stream::Status {
+            self.lock()?.status = Some((key.clone(), bytes.clone()));
+        } else {
+            let kept = self.lock()?.messages.len() as u64;
+            if update.seq < kept {
+                let same = self.lock()?.messages[update.seq as usize].1 == bytes;
+                return if same {
+                    Ok(false)
+                } else {
+                    Err(FleetError::Message {
+                        key,
+                        source: malformed(
+                            "differs from the message of that number sent before the restart \
+                             (another log or other settings)"
+                                .into(),
+                        ),
+                    })
+                };
+            }
+            if update.seq > kept {
                 return Err(FleetError::Message {
                     key,
-                    source: slamkit_slam::map_file::MapFileError::Malformed(format!(
-                        "sequence number {} after {} messages",
-                        update.seq,
-                        store.len()
+                    source: malformed(format!(
+                        "sequence number {} after {kept} messages",
+                        update.seq
                     )),
                 });
             }
-            store.push((key.clone(), bytes.clone()));
+            if let Some(file) = &mut self.file {
+                file.append(&bytes)?;
+            }
+            self.lock()?.messages.push((key.clone(), bytes.clone()));
         }
         if let Some((p, rng)) = &mut self.loss {
             if rng.gen::<f64>() < *p {
                 self.dropped += 1;
-                return Ok(());
+                return Ok(true);
             }
         }
         self.sent_bytes += bytes.len() + key.len();
+        self.sent_messages += 1;
         self.session
             .put(key, bytes)
+            .timestamp(self.session.new_timestamp())
             .wait()
-            .map_err(FleetError::zenoh)
+            .map_err(FleetError::zenoh)?;
+        Ok(true)
+    }
+
+    /// Keyframes and edges messages kept (sent now or before a restart).
+    pub fn stored(&self) -> u64 {
+        self.store
+            .lock()
+            .map_or(0, |served| served.messages.len() as u64)
+    }
+
+    /// Bytes of the keyframes and edges messages kept, keys included: what the robot's map
+    /// updates cost without loss, over its whole run (before and after a restart).
+    pub fn stored_bytes(&self) -> usize {
+        self.store.lock().map_or(0, |served| {
+            served.messages.iter().map(|(k, b)| k.len() + b.len()).sum()
+        })
+    }
+
+    /// Messages published (not counting the answers to queries and those dropped on purpose).
+    pub fn sent_messages(&self) -> usize {
+        self.sent_messages
     }
 
     /// Bytes published (messages and their keys; not the answers to queries).
@@ -133,6 +224,18 @@ impl RobotPublisher {
     pub fn dropped(&self) -> usize {
         self.dropped
     }
+}
+
+impl RobotPublisher {
+    fn lock(&self) -> Result<std::sync::MutexGuard<'_, Served>, FleetError> {
+        self.store
+            .lock()
+            .map_err(|_| FleetError::Zenoh("the message store was poisoned".into()))
+    }
+}
+
+fn malformed(what: String) -> slamkit_slam::map_file::MapFileError {
+    slamkit_slam::map_file::MapFileError::Malformed(what)
 }
 
 /// The sequence numbers of a `seqs` parameter; what does not parse is left out.

@@ -28,6 +28,7 @@
 //! Nothing here reads ground truth; the tests score the merge against it.
 
 pub mod joint;
+pub mod output;
 pub mod pcm;
 pub mod places;
 pub mod report;

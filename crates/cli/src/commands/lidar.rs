@@ -119,7 +119,7 @@ pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
     let config = session_config(args)?;
     let folder = OutputFolder::create(&args.out, OUTPUTS)?;
     let out = folder.path();
-    let log = read_log(args)?;
+    let log = read_log(&args.log, &args.topics)?;
     ensure_usable(&log.scans, &config.icp).context(args.log.display().to_string())?;
     let new_map = args.localize.is_none() && args.continue_map.is_none();
     let particle_maps_min_bytes = (new_map && config.method == LidarMethod::Rbpf)
@@ -226,11 +226,10 @@ fn session_config(args: &LidarArgs) -> anyhow::Result<LidarSlamConfig> {
     Ok(config)
 }
 
-/// The log `--log` names (a CARMEN file or a bag: `slamkit_io::lidar_log`), what was read
-/// from a bag and any damage told on the terminal.
-pub(crate) fn read_log(args: &LidarArgs) -> anyhow::Result<CarmenLog> {
-    let path = &args.log;
-    let file = read_lidar_log(path, &args.topics.scan_topics())?;
+/// The lidar log at `path` (a CARMEN file or a bag's `topics`: `slamkit_io::lidar_log`), what
+/// was read from a bag and any damage told on the terminal.
+pub(crate) fn read_log(path: &Path, topics: &TopicArgs) -> anyhow::Result<CarmenLog> {
+    let file = read_lidar_log(path, &topics.scan_topics())?;
     if let Some(description) = &file.description {
         println!("bag {}: {description}", path.display());
     }

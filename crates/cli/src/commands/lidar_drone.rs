@@ -43,7 +43,7 @@ pub fn run(args: &LidarArgs, ranges: &Path) -> anyhow::Result<()> {
     }
     let folder = OutputFolder::create(&args.out, OUTPUTS)?;
     let out = folder.path();
-    let log = read_log(args)?;
+    let log = read_log(&args.log, &args.topics)?;
     if let Some(pf) = &config.particle_filter {
         ensure_fits_memory(particle_maps_min_bytes(pf, &log.scans), pf.particles)?;
     }

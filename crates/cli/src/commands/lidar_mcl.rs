@@ -34,7 +34,7 @@ pub fn run_localization(args: &LidarArgs, map_path: &Path) -> anyhow::Result<()>
         .with_context(|| format!("loading the map {}", map_path.display()))?;
     let folder = OutputFolder::create(&args.out, OUTPUTS)?;
     let out = folder.path();
-    let log = read_log(args)?;
+    let log = read_log(&args.log, &args.topics)?;
     ensure_usable(&log.scans, &IcpSlamConfig::default()).context(args.log.display().to_string())?;
     let bar = progress_bar(log.scans.len() as u64, "mcl");
     let result = run_mcl(&log.scans, &map, &config, |_| bar.inc(1))

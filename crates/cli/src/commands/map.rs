@@ -6,6 +6,7 @@ use slamkit_io::output_folder::OutputFolder;
 use slamkit_slam::lidar::LidarMap;
 use slamkit_slam::map_file::info::MapInfo;
 use slamkit_slam::map_file::MapFile;
+use slamkit_slam::merge::output::{write_merge, MERGE_FILES};
 use slamkit_slam::merge::{merge_maps, MergeConfig};
 use std::path::{Path, PathBuf};
 
@@ -100,32 +101,8 @@ fn merge(files: &[PathBuf], out: &Path) -> anyhow::Result<()> {
     let names = robot_names(files);
     let config = MergeConfig::default();
     let outcome = merge_maps(&maps, &config)?;
-    let files_written = &[
-        "map.skmap",
-        "map.pgm",
-        "map.yaml",
-        "map.png",
-        "cloud.ply",
-        "trajectory.tum",
-        "report.json",
-    ];
-    let folder = OutputFolder::create(out, files_written)?;
-    let notes = serde_json::json!({ "method": "map merge", "inputs": names });
-    let merged = outcome.map.to_new_file(notes)?;
-    let merged_path = folder.path().join("map.skmap");
-    merged.save(&merged_path)?;
-    slamkit_slam::map_file::export::export(&merged, &merged_path, folder.path())?;
-    for (name, input) in names.iter().zip(&outcome.inputs) {
-        if let Some(trajectory) = &input.trajectory {
-            let path = folder.path().join(format!("trajectory_{name}.tum"));
-            slamkit_io::trajectory_file::write_tum(&path, trajectory)?;
-        }
-    }
-    let keyframe_times: Vec<Vec<f64>> = maps
-        .iter()
-        .map(|m| m.keyframes.iter().map(|k| k.scan.timestamp).collect())
-        .collect();
-    let mut report = outcome.report(&names, &keyframe_times);
+    let folder = OutputFolder::create(out, MERGE_FILES)?;
+    let mut report = write_merge(&outcome, &maps, &names, "map merge", folder.path())?;
     report["input"] = serde_json::json!(files);
     report["config"] = serde_json::to_value(&config)?;
     report["wall_seconds"] = serde_json::json!(start.elapsed().as_secs_f64());

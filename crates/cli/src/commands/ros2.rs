@@ -2,12 +2,9 @@
 //! (Ctrl-C, SIGTERM, or `--idle-exit`) the map, trajectory and report go to `--out`.
 
 use crate::output::finish;
-use anyhow::Context;
 use slamkit_io::output_folder::OutputFolder;
 use slamkit_ros2::{run_lidar_node, LidarNodeRequest, LidarNodeRun};
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
 use std::time::Instant;
 
 /// Arguments of `slamkit ros2`.
@@ -76,10 +73,7 @@ fn lidar(args: &LidarNodeArgs) -> anyhow::Result<()> {
         eprintln!("note: parameters not used by slamkit: {ignored}");
     }
     let folder = OutputFolder::create(&args.out, LidarNodeRun::OUTPUTS)?;
-    let stop = Arc::new(AtomicBool::new(false));
-    let flag = Arc::clone(&stop);
-    ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed))
-        .context("installing the Ctrl-C handler")?;
+    let stop = crate::output::stop_flag()?;
     let out = args.out.display();
     let what = setup.node.describe();
     println!("slamkit ros2 lidar: {what}; Ctrl-C stops and saves to {out}");
