@@ -6,7 +6,7 @@
 //! map) needs all of it. [`VisualSlam::push`] does both in turn; [`pipeline::run`] prepares the
 //! next frame on another thread while the session tracks the current one, and decodes images
 //! on a third, as a live camera driver would. The world point map is filled on a thread of its
-//! own ([`point_map`]).
+//! own ([`point_map`]). [`run_files`] writes and scores a finished run over a dataset.
 //!
 //! With [`VoConfig::loop_closure`] on (`slamkit vo --slam`) the session is visual SLAM: its
 //! keyframes, map points, place index and pose graph (module `loop_closing`) close loops on a
@@ -41,6 +41,7 @@ mod loop_thread;
 pub mod pipeline;
 pub mod point_map;
 mod prepare;
+pub mod run_files;
 pub mod simulated;
 
 pub use keyframes::{Keyframe, VisualMap};

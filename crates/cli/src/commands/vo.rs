@@ -10,9 +10,10 @@ use slamkit_io::bag::RgbdTopics;
 use slamkit_io::output_folder::OutputFolder;
 use slamkit_io::{Dataset, DatasetFormat as IoFormat};
 use slamkit_slam::profile::layout_profile;
+use slamkit_slam::visual::run_files::{self, DatasetRun};
 use slamkit_slam::visual::{self, PointMapping, RunOptions, VisualSlam};
 use slamkit_slam::Session;
-use slamkit_vo::{evaluate, FrontendKind, VoConfig};
+use slamkit_vo::{FrontendKind, VoConfig};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -179,57 +180,23 @@ pub fn run(args: &VoArgs) -> anyhow::Result<()> {
     if let Some(path) = &args.save_map {
         Session::save(&session, path)?;
     }
-    let keyframes = session.map().keyframes.len();
-    let loops = session.loop_closures();
-    let session = session.finish()?;
-    let mut timings = result.timings.clone();
-    timings.merge(&session.timings);
-    let map = session.point_map.context("the session kept no point map")?;
-
-    let traj_path = out.join("trajectory.tum");
-    slamkit_io::trajectory_file::write_tum(&traj_path, &result.trajectory)?;
-    if format == IoFormat::Kitti {
-        slamkit_io::trajectory_file::write_kitti(
-            &out.join("trajectory.kitti"),
-            &result.trajectory,
-        )?;
-    }
-    let loop_closure = loops.map(|(stats, closures)| {
-        let check = dataset
-            .ground_truth()
-            .map(|gt| slamkit_slam::visual::check_closures(&closures, gt));
-        json!({ "stats": stats, "closures": closures, "against_ground_truth": check })
-    });
-    let metrics = dataset.ground_truth().map(|gt| {
-        dataset.write_ground_truth_tum(&out.join("groundtruth.tum"))?;
-        evaluate(&result.trajectory, gt).context("scoring against the ground truth")
-    });
-    let metrics = metrics.transpose()?;
-    map.write_ply(&out.join("cloud.ply"))?;
-    let mut frames = json!(session.stats);
-    merge_json(&mut frames, json!(result.stats));
-    let report = json!({
-        "input": args.dataset_dir,
-        "format": format!("{format:?}"),
-        "realtime": args.realtime,
-        "profile": args.profile.as_deref().or_else(|| layout_profile(format)),
-        "config": config,
-        "frames": frames,
-        "map": {
-            "points": map.len(),
-            "dropped_points": map.dropped(),
-            "keyframes": keyframes,
-            "saved_to": args.save_map,
-            "localised_in": args.localize,
-        },
-        "wall_seconds": started.elapsed().as_secs_f64(),
-        "timings_ms": timings.summary(),
-        "metrics": metrics,
-        "loop_closure": loop_closure,
-        "frame_status": result.frames,
-    });
+    let (mut report, metrics) =
+        DatasetRun::finish(session, result)?.write(out, &dataset, format)?;
+    merge_json(
+        &mut report,
+        json!({
+            "input": args.dataset_dir,
+            "format": format!("{format:?}"),
+            "realtime": args.realtime,
+            "profile": args.profile.as_deref().or_else(|| layout_profile(format)),
+            "config": config,
+            "wall_seconds": started.elapsed().as_secs_f64(),
+        }),
+    );
+    report["map"]["saved_to"] = json!(args.save_map);
+    report["map"]["localised_in"] = json!(args.localize);
     finish(folder, &report)?;
-    print_summary(&report);
+    println!("{}", run_files::summary(&report));
     if let Some(metrics) = &metrics {
         println!("{metrics}");
     }
@@ -264,19 +231,4 @@ fn load_config(args: &VoArgs, format: IoFormat) -> anyhow::Result<VoConfig> {
     Ok(visual::session_settings(
         frontend, format, profile, config, args.slam,
     )?)
-}
-
-fn print_summary(report: &serde_json::Value) {
-    let f = &report["frames"];
-    println!(
-        "vo: {} frames, {} processed, {} failed, {} dropped, {} skipped",
-        f["frames"], f["processed"], f["failed"], f["dropped"], f["skipped"]
-    );
-    if let Some(t) = report["timings_ms"].get("frame") {
-        println!(
-            "per-frame time: median {:.1} ms, p95 {:.1} ms",
-            t["median_ms"].as_f64().unwrap_or(f64::NAN),
-            t["p95_ms"].as_f64().unwrap_or(f64::NAN)
-        );
-    }
 }

@@ -1,0 +1,122 @@
+//! What a [`VisualSlam`] run over a dataset leaves (`slamkit vo`): the trajectory in the
+//! dataset's own format as well as TUM, the ground truth beside it, the point map as PLY, and
+//! the report's fields about frames, map, timings, accuracy and loop closures, scored against
+//! the dataset's ground truth when it has one (the session itself never reads it).
+
+use super::{check_closures, LoopClosure, LoopStats, VisualOutput, VisualRun, VisualSlam};
+use crate::SlamError;
+use serde_json::{json, Value};
+use slamkit_io::{Dataset, DatasetFormat};
+use slamkit_vo::{evaluate, VoMetrics};
+use std::path::Path;
+
+/// A finished run over a dataset, as `slamkit vo` writes it.
+pub struct DatasetRun {
+    /// The frames' trajectory and statuses ([`super::run`]).
+    pub run: VisualRun,
+    /// The session's point map, timings and counters ([`VisualSlam::finish`]).
+    pub output: VisualOutput,
+    /// Loop closure's counters and closures, when it was on.
+    pub loops: Option<(LoopStats, Vec<LoopClosure>)>,
+    /// Keyframes in the session's map at the end.
+    pub keyframes: usize,
+}
+
+impl DatasetRun {
+    /// Ends `session` after [`super::run`] gave `run`.
+    pub fn finish(session: VisualSlam, run: VisualRun) -> Result<Self, SlamError> {
+        let keyframes = session.map().keyframes.len();
+        let loops = session.loop_closures();
+        let output = session.finish()?;
+        Ok(Self {
+            run,
+            output,
+            loops,
+            keyframes,
+        })
+    }
+
+    /// Writes `trajectory.tum` (and `trajectory.kitti` for a KITTI dataset), `groundtruth.tum`
+    /// when `dataset` has ground truth, and `cloud.ply` (the point map) into `out`; returns the
+    /// report's `frames`, `map`, `timings_ms`, `metrics`, `loop_closure` and `frame_status`
+    /// fields, and the accuracy against the ground truth.
+    pub fn write(
+        &self,
+        out: &Path,
+        dataset: &Dataset,
+        format: DatasetFormat,
+    ) -> Result<(Value, Option<VoMetrics>), SlamError> {
+        let trajectory = &self.run.trajectory;
+        slamkit_io::trajectory_file::write_tum(&out.join("trajectory.tum"), trajectory)?;
+        if format == DatasetFormat::Kitti {
+            slamkit_io::trajectory_file::write_kitti(&out.join("trajectory.kitti"), trajectory)?;
+        }
+        let metrics = match dataset.ground_truth() {
+            Some(gt) => {
+                dataset.write_ground_truth_tum(&out.join("groundtruth.tum"))?;
+                Some(evaluate(trajectory, gt)?)
+            }
+            None => None,
+        };
+        let loop_closure = self.loops.as_ref().map(|(stats, closures)| {
+            let check = dataset
+                .ground_truth()
+                .map(|gt| check_closures(closures, gt));
+            json!({ "stats": stats, "closures": closures, "against_ground_truth": check })
+        });
+        let map = self.output.point_map.as_ref();
+        let map = map.ok_or_else(|| SlamError::Config("the session kept no point map".into()))?;
+        map.write_ply(&out.join("cloud.ply"))?;
+        let mut frames = json!(self.output.stats);
+        if let (Some(frames), Value::Object(run)) = (frames.as_object_mut(), json!(self.run.stats))
+        {
+            frames.extend(run);
+        }
+        let mut timings = self.run.timings.clone();
+        timings.merge(&self.output.timings);
+        let report = json!({
+            "frames": frames,
+            "map": {
+                "points": map.len(),
+                "dropped_points": map.dropped(),
+                "keyframes": self.keyframes,
+            },
+            "timings_ms": timings.summary(),
+            "metrics": metrics,
+            "loop_closure": loop_closure,
+            "frame_status": self.run.frames,
+        });
+        Ok((report, metrics))
+    }
+}
+
+/// The lines a person reads at the end of a visual run, from its `report`: frame counts and,
+/// when timed, the per-frame time.
+///
+/// ```
+/// let report = serde_json::json!({
+///     "frames": { "frames": 3, "processed": 3, "failed": 0, "dropped": 0, "skipped": 0 },
+///     "timings_ms": { "frame": { "median_ms": 9.54, "p95_ms": 12.0 } },
+/// });
+/// assert_eq!(
+///     slamkit_slam::visual::run_files::summary(&report),
+///     "vo: 3 frames, 3 processed, 0 failed, 0 dropped, 0 skipped\n\
+///      per-frame time: median 9.5 ms, p95 12.0 ms"
+/// );
+/// ```
+pub fn summary(report: &Value) -> String {
+    let f = &report["frames"];
+    let mut text = format!(
+        "vo: {} frames, {} processed, {} failed, {} dropped, {} skipped",
+        f["frames"], f["processed"], f["failed"], f["dropped"], f["skipped"]
+    );
+    if let Some(t) = report["timings_ms"].get("frame") {
+        let ms = |key: &str| t[key].as_f64().unwrap_or(f64::NAN);
+        text += &format!(
+            "\nper-frame time: median {:.1} ms, p95 {:.1} ms",
+            ms("median_ms"),
+            ms("p95_ms")
+        );
+    }
+    text
+}
