@@ -17,14 +17,6 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
-
 /// Starts `slamkit ARGS`, its output in `<log>.out` and `<log>.err`.
 fn spawn(args: &[String], log: &Path) -> Child {
     Command::new(env!("CARGO_BIN_EXE_slamkit"))
@@ -121,7 +113,7 @@ fn robot_and_merger_processes_killed_and_restarted_merge_as_offline() {
     cut(&lines, 0, 1200, &at("a.clf"));
     cut(&lines, 800, 2000, &at("b.clf"));
 
-    let port = free_port();
+    let port = slamkit_testdata::free_loopback_port();
     let endpoint = format!("tcp/127.0.0.1:{port}");
     let merger_args: Vec<String> = ["fleet", "merger", "--fleet", "intel", "--listen", &endpoint]
         .iter()

@@ -29,19 +29,13 @@ fn world() -> SegmentWorld {
     room
 }
 
-/// A free loopback port (taken and given back; the peer binds it a moment later).
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
-
 /// One robot: drives from `from` to `to` at `heading`, maps, publishes.
 fn robot(name: &str, merger: u16, from: (f64, f64), to: (f64, f64), heading: f64, loss: f64) {
     let session = PeerConfig {
-        listen: vec![format!("tcp/127.0.0.1:{}", free_port())],
+        listen: vec![format!(
+            "tcp/127.0.0.1:{}",
+            slamkit_testdata::free_loopback_port()
+        )],
         connect: vec![format!("tcp/127.0.0.1:{merger}")],
     }
     .open()
@@ -101,7 +95,7 @@ struct Run {
 }
 
 fn run(loss: f64) -> Run {
-    let port = free_port();
+    let port = slamkit_testdata::free_loopback_port();
     let session = PeerConfig {
         listen: vec![format!("tcp/127.0.0.1:{port}")],
         connect: Vec::new(),
