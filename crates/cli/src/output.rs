@@ -4,6 +4,7 @@
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use slamkit_io::output_folder::OutputFolder;
+pub use slamkit_slam::report::merge_json;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
@@ -79,13 +80,6 @@ pub fn finish(folder: OutputFolder, report: &serde_json::Value) -> anyhow::Resul
         anyhow::bail!("{error} (the rest of the run is in {})", path.display());
     }
     Ok(())
-}
-
-/// Adds the fields of the JSON object `more` to the object `report` (those of `more` win).
-pub fn merge_json(report: &mut serde_json::Value, more: serde_json::Value) {
-    if let (Some(report), serde_json::Value::Object(more)) = (report.as_object_mut(), more) {
-        report.extend(more);
-    }
 }
 
 #[cfg(test)]

@@ -16,6 +16,7 @@
 //!   `drone::kidnapped`).
 //! * [`map_file`]: the `.skmap` container: header, sections, checksum, atomic writes.
 //! * [`memory`]: this process's peak memory and the machine's, for reports and preflight checks.
+//! * [`report`]: pieces of the JSON run reports every shell assembles.
 //! * [`odometry_gate`]: odometry jumps a robot cannot have made, taken as no motion.
 //! * [`profile`]: named profiles (`config/*.toml`) and configuration files laid over a
 //!   session's settings.
@@ -45,6 +46,7 @@ pub mod merge;
 pub mod odometry_gate;
 pub mod profile;
 pub mod record;
+pub mod report;
 pub mod session;
 pub mod visual;
 

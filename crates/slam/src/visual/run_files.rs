@@ -4,6 +4,7 @@
 //! the dataset's ground truth when it has one (the session itself never reads it).
 
 use super::{check_closures, LoopClosure, LoopStats, VisualOutput, VisualRun, VisualSlam};
+use crate::report::merge_json;
 use crate::SlamError;
 use serde_json::{json, Value};
 use slamkit_io::{Dataset, DatasetFormat};
@@ -68,10 +69,7 @@ impl DatasetRun {
         let map = map.ok_or_else(|| SlamError::Config("the session kept no point map".into()))?;
         map.write_ply(&out.join("cloud.ply"))?;
         let mut frames = json!(self.output.stats);
-        if let (Some(frames), Value::Object(run)) = (frames.as_object_mut(), json!(self.run.stats))
-        {
-            frames.extend(run);
-        }
+        merge_json(&mut frames, json!(self.run.stats));
         let mut timings = self.run.timings.clone();
         timings.merge(&self.output.timings);
         let report = json!({
