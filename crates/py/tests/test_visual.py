@@ -1,6 +1,8 @@
 """Cameras from Python: a VisualSlam session over KITTI 06 (stereo) gives `slamkit vo`'s
-trajectory and accuracy."""
+trajectory and accuracy, and a `vo --record` of 7-Scenes opens in the MCAP project's reader."""
 
+import base64
+import io
 import json
 
 import numpy as np
@@ -38,3 +40,51 @@ def test_bad_input_gives_one_line_errors(tmp_path):
         slamkit.Dataset(tmp_path)
     with pytest.raises(slamkit.SlamkitError):
         slamkit.Dataset(tmp_path, format="betamax")
+
+
+def test_recording_of_7_scenes_opens_in_an_independent_mcap_reader(data, cli, tmp_path):
+    """`vo --slam --record` as Foxglove and rerun would read it, through the MCAP project's own
+    Python reader: every channel with its Foxglove schema, counts equal to the run's, log times
+    in order, every frame's image a JPEG of the camera's size, the last path the (loop-closed)
+    trajectory, the map the run's point cloud."""
+    reader_module = pytest.importorskip("mcap.reader")
+    folder = data / "rgbd" / "7scenes_redkitchen_frames_0000-0599"
+    out, recording = tmp_path / "vo", tmp_path / "7scenes.mcap"
+    cli("vo", folder, "--slam", "--out", out, "--record", recording)
+    report = json.loads((out / "report.json").read_text())
+    trajectory, _ = slamkit.read_trajectory(out / "trajectory.tum")
+
+    schemas = {"/camera/image": "foxglove.CompressedImage", "/pose": "foxglove.PoseInFrame",
+               "/tf": "foxglove.FrameTransform", "/path": "foxglove.PosesInFrame",
+               "/map": "foxglove.PointCloud"}
+    counts, first, last, last_time = {}, {}, {}, 0
+    with open(recording, "rb") as f:
+        reader = reader_module.make_reader(f)
+        for schema, channel, message in reader.iter_messages(log_time_order=False):
+            assert schema.name == schemas[channel.topic], channel.topic
+            assert channel.message_encoding == "json"
+            assert message.log_time >= last_time  # written in time order
+            last_time = message.log_time
+            counts[channel.topic] = counts.get(channel.topic, 0) + 1
+            first.setdefault(channel.topic, message)
+            last[channel.topic] = message
+    assert counts == report["recording"]["messages"]
+    assert counts["/camera/image"] == report["frames"]["read"] == 600
+    assert counts["/pose"] == counts["/tf"] == len(trajectory)
+
+    image = json.loads(first["/camera/image"].data)
+    jpeg = base64.b64decode(image["data"])
+    assert image["format"] == "jpeg" and jpeg[:2] == b"\xff\xd8"
+    pil = pytest.importorskip("PIL.Image")
+    assert pil.open(io.BytesIO(jpeg)).size == (640, 480)
+
+    path = json.loads(last["/path"].data)["poses"]
+    positions = np.array([[p["position"][k] for k in "xyz"] for p in path])
+    assert positions.shape == (len(trajectory), 3)
+    assert np.abs(positions - trajectory[:, 1:4]).max() < 1e-6
+
+    cloud = json.loads(last["/map"].data)
+    assert [f["name"] for f in cloud["fields"]] == ["x", "y", "z", "red", "green", "blue", "alpha"]
+    points = len(base64.b64decode(cloud["data"])) // cloud["point_stride"]
+    header = (out / "cloud.ply").read_bytes()[:400].decode("ascii", "replace")
+    assert f"element vertex {points}\n" in header

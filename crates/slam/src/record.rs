@@ -1,17 +1,23 @@
-//! Recordings any viewer opens: a run written as an MCAP file (`--record FILE.mcap`) with
-//! Foxglove's well-known schemas in JSON encoding, so Foxglove Studio and the rerun viewer open
-//! it directly with no slamkit installed: scans (`foxglove.LaserScan`), poses
+//! Recordings a viewer opens: a run written as an MCAP file (`--record FILE.mcap`) with
+//! Foxglove's well-known schemas in JSON encoding, so Foxglove opens it directly with no
+//! slamkit installed (the rerun viewer reads MCAP too, but draws Foxglove's schemas only in
+//! their Protobuf encoding; it lists these messages raw): scans (`foxglove.LaserScan`), poses
 //! (`foxglove.PoseInFrame`), the trajectory (`foxglove.PosesInFrame`), transforms
 //! (`foxglove.FrameTransform`) and the map as it grows (`foxglove.Grid`, ROS occupancy values:
-//! −1 unknown, 0 free, 100 occupied).
+//! −1 unknown, 0 free, 100 occupied); from a camera, its images (`foxglove.CompressedImage`)
+//! and the point map (`foxglove.PointCloud`).
 //!
 //! The file is written beside its final name and renamed into place by [`Recorder::finish`], so
 //! a run that fails or is killed never leaves a half-written recording under that name.
 
+mod visual;
+
+pub use visual::{VisualRecording, IMAGE_TOPIC};
+
 use crate::SlamError;
 use mcap::records::MessageHeader;
 use serde_json::{json, Value};
-use slamkit_core::{LaserScan, Pose3};
+use slamkit_core::{LaserScan, PointCloud, Pose3};
 use slamkit_eval::report_html::base64;
 use slamkit_map::grid_io::trinary_image;
 use slamkit_map::OccupancyGrid;
@@ -97,8 +103,35 @@ const GRID: Schema = Schema {
     },
 };
 
-/// Foxglove's `PackedElementField` numeric type of a signed byte.
+const COMPRESSED_IMAGE: Schema = Schema {
+    name: "foxglove.CompressedImage",
+    properties: || {
+        json!({
+            "timestamp": time_schema(), "frame_id": { "type": "string" },
+            "data": { "type": "string", "contentEncoding": "base64" },
+            "format": { "type": "string" },
+        })
+    },
+};
+
+const POINT_CLOUD: Schema = Schema {
+    name: "foxglove.PointCloud",
+    properties: || {
+        json!({
+            "timestamp": time_schema(), "frame_id": { "type": "string" }, "pose": pose_schema(),
+            "point_stride": { "type": "integer" },
+            "fields": { "type": "array", "items": { "type": "object", "properties": {
+                "name": { "type": "string" }, "offset": { "type": "integer" },
+                "type": { "type": "integer" } } } },
+            "data": { "type": "string", "contentEncoding": "base64" },
+        })
+    },
+};
+
+/// Foxglove's `PackedElementField` numeric types.
+const UINT8: u8 = 1;
 const INT8: u8 = 2;
+const FLOAT32: u8 = 7;
 
 /// A run being recorded to an MCAP file.
 pub struct Recorder {
@@ -227,6 +260,59 @@ impl Recorder {
             "data": base64(&cells),
         });
         self.write(topic, &GRID, t, &message)
+    }
+
+    /// An already encoded image (`format`: `jpeg` or `png`) of the camera `frame` on `topic`,
+    /// at time `t` \[s\].
+    pub fn compressed_image(
+        &mut self,
+        topic: &str,
+        frame: &str,
+        t: f64,
+        format: &str,
+        bytes: &[u8],
+    ) -> Result<(), SlamError> {
+        let message = json!({
+            "timestamp": stamp(t), "frame_id": frame, "data": base64(bytes), "format": format,
+        });
+        self.write(topic, &COMPRESSED_IMAGE, t, &message)
+    }
+
+    /// `cloud` in `frame` on `topic`, at time `t` \[s\]: positions as 32-bit floats, and
+    /// colours (opaque RGBA bytes) when the cloud has them.
+    pub fn point_cloud(
+        &mut self,
+        topic: &str,
+        frame: &str,
+        t: f64,
+        cloud: &PointCloud,
+    ) -> Result<(), SlamError> {
+        let colors = cloud.colors.as_ref();
+        let stride = if colors.is_some() { 16 } else { 12 };
+        let mut data = Vec::with_capacity(cloud.points.len() * stride);
+        for (i, p) in cloud.points.iter().enumerate() {
+            for v in [p.x, p.y, p.z] {
+                data.extend_from_slice(&(v as f32).to_le_bytes());
+            }
+            if let Some(c) = colors.and_then(|c| c.get(i)) {
+                data.extend_from_slice(&[c[0], c[1], c[2], 255]);
+            }
+        }
+        let mut fields = vec![
+            json!({ "name": "x", "offset": 0, "type": FLOAT32 }),
+            json!({ "name": "y", "offset": 4, "type": FLOAT32 }),
+            json!({ "name": "z", "offset": 8, "type": FLOAT32 }),
+        ];
+        if colors.is_some() {
+            for (k, name) in ["red", "green", "blue", "alpha"].iter().enumerate() {
+                fields.push(json!({ "name": name, "offset": 12 + k, "type": UINT8 }));
+            }
+        }
+        let message = json!({
+            "timestamp": stamp(t), "frame_id": frame, "pose": pose_json(&Pose3::identity()),
+            "point_stride": stride, "fields": fields, "data": base64(&data),
+        });
+        self.write(topic, &POINT_CLOUD, t, &message)
     }
 
     /// Ends the recording: writes MCAP's summary and puts the file at its name; returns the

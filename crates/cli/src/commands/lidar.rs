@@ -96,7 +96,7 @@ pub struct LidarArgs {
     /// Benchmark relations to score against; by default `<log stem>.relations` beside the log.
     #[arg(long)]
     pub relations: Option<PathBuf>,
-    /// Record the run to this MCAP file (Foxglove's schemas; Foxglove and rerun open it): each
+    /// Record the run to this MCAP file (Foxglove's JSON schemas, for Foxglove): each
     /// scan, its pose and `map → base_link`, and the map and path ten times over the run.
     /// Not with `--ranges` or `--localize MAP.yaml` yet.
     #[arg(long, value_name = "FILE.mcap", conflicts_with = "ranges")]

@@ -6,10 +6,13 @@
 use crate::output::{finish, merge_json, progress_bar};
 use anyhow::Context;
 use serde_json::json;
+use slamkit_core::Observation;
 use slamkit_io::bag::RgbdTopics;
 use slamkit_io::output_folder::OutputFolder;
+use slamkit_io::IoError;
 use slamkit_io::{Dataset, DatasetFormat as IoFormat};
 use slamkit_slam::profile::layout_profile;
+use slamkit_slam::record::VisualRecording;
 use slamkit_slam::visual::run_files::{self, DatasetRun};
 use slamkit_slam::visual::{self, PointMapping, RunOptions, VisualSlam};
 use slamkit_slam::Session;
@@ -88,6 +91,11 @@ pub struct VoArgs {
     /// instead of building one: no start pose, poses in the map's frame, the map unchanged.
     #[arg(long, conflicts_with_all = ["save_map", "slam"])]
     pub localize: Option<PathBuf>,
+    /// Record the run to this MCAP file (Foxglove's JSON schemas, for Foxglove): each
+    /// frame's image (JPEG), its pose and `map → camera`, the path ten times over the run, and
+    /// at the end the final path and the point map.
+    #[arg(long, value_name = "FILE.mcap")]
+    pub record: Option<PathBuf>,
     /// Output folder.
     #[arg(long, default_value = "out/vo")]
     pub out: PathBuf,
@@ -170,18 +178,41 @@ pub fn run(args: &VoArgs) -> anyhow::Result<()> {
         None => VisualSlam::new(&config, rig)?,
     };
     let mut session = session.with_point_map(mapping)?;
-    let result = visual::run(&mut session, dataset.observations(), options, |_| {
-        bar.inc(1)
+    let mut recording = match &args.record {
+        Some(path) => Some(VisualRecording::create(path, dataset.len())?),
+        None => None,
+    };
+    let source: Box<dyn Iterator<Item = Result<Observation, IoError>> + Send + '_> =
+        match &recording {
+            Some(r) => Box::new(r.tap(dataset.observations())),
+            None => dataset.observations(),
+        };
+    let mut recording_error = None;
+    let result = visual::run(&mut session, source, options, |update| {
+        bar.inc(1);
+        if let Some(Err(e)) = recording.as_mut().map(|r| r.push(update)) {
+            recording_error.get_or_insert(e);
+        }
     })?;
     bar.finish_and_clear();
+    if let Some(e) = recording_error {
+        return Err(e.into());
+    }
     for line in &result.skipped {
         eprintln!("skipped {line}");
     }
     if let Some(path) = &args.save_map {
         Session::save(&session, path)?;
     }
-    let (mut report, metrics) =
-        DatasetRun::finish(session, result)?.write(out, &dataset, format)?;
+    let run = DatasetRun::finish(session, result)?;
+    let recorded = match recording {
+        Some(r) => {
+            let cloud = run.output.point_map.as_ref().map(|m| m.to_cloud());
+            Some(r.finish(&run.run.trajectory, cloud.as_ref())?)
+        }
+        None => None,
+    };
+    let (mut report, metrics) = run.write(out, &dataset, format)?;
     merge_json(
         &mut report,
         json!({
@@ -191,6 +222,7 @@ pub fn run(args: &VoArgs) -> anyhow::Result<()> {
             "profile": args.profile.as_deref().or_else(|| layout_profile(format)),
             "config": config,
             "wall_seconds": started.elapsed().as_secs_f64(),
+            "recording": recorded.map(|messages| json!({ "file": args.record, "messages": messages })),
         }),
     );
     report["map"]["saved_to"] = json!(args.save_map);
