@@ -75,22 +75,20 @@ fn tracks_every_frame(test: &str, frontend: FrontendKind, max_ate_m: f64) {
     assert!(m.ate.rmse <= max_ate_m, "ATE {}", m.ate.rmse);
 }
 
-// Not met yet (measured 2026-11-27 at f65608a, `cargo test --release -p slamkit-slam --test
-// visual_fast_motion -- --ignored --nocapture`; docs/experiments/visual-slam.md, "Fast motion:
-// why the poses are poor at 3 m steps"). KLT tracks all 17 frames, ATE 0.292 m: it keeps only
-// 12-65 correspondences (full rate: 56-176), the rest converge to wrong minima (without the
-// forward-backward check 119 tracks, 22 fit a motion) because the near points' windows grow
-// 1.2-1.4x between frames; the per-step rotation is 0.7 deg off on average. More pyramid
-// levels or a wider window do not help (a search-range fix cannot); points to 40 m give
-// 0.168 m here but 0.0747 -> 0.114 m at full rate. ORB with one level fails 11 of 17 frames
-// (no match across the scale change); 3-4 levels track every frame at 0.29-0.30 m, 3 levels
-// with points to 40 m 0.233 m (full rate 0.133 -> 0.159 m).
+// Measured 2026-11-27 (`cargo test --release -p slamkit-slam --test visual_fast_motion --
+// --include-ignored --nocapture`; docs/experiments/visual-slam.md, "Fast motion: why the
+// poses are poor at 3 m steps"): KLT 0.1835 m, every frame tracked, since the stereo profile no
+// longer caps the corners at 500 (0.292 m with the cap: 12-65 correspondences, the rest lost to
+// wrong minima as the near points' windows grow 1.2-1.4x between frames; more pyramid levels
+// or a wider window do not help).
 #[test]
-#[ignore = "issue 20 fast motion not met: KLT ATE 0.292 m > 0.20 (12-65 correspondences, scale change)"]
 fn kitti_06_every_third_frame_klt() {
     tracks_every_frame("kitti_06_every_third_frame_klt", FrontendKind::Klt, 0.20);
 }
 
+// Not met: ORB with the profile's one level fails 11 of 17 frames (no match across the scale
+// change); 3-4 levels track every frame at 0.29-0.30 m (full rate 0.133 -> 0.141 / 0.147 m),
+// 3 levels with points to 40 m 0.233 m (full rate 0.159 m).
 #[test]
 #[ignore = "issue 20 fast motion not met: ORB (1 level) fails 11 of 17 frames; 3-4 levels 0.29 m"]
 fn kitti_06_every_third_frame_orb() {
