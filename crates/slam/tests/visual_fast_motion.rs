@@ -75,21 +75,22 @@ fn tracks_every_frame(test: &str, frontend: FrontendKind, max_ate_m: f64) {
     assert!(m.ate.rmse <= max_ate_m, "ATE {}", m.ate.rmse);
 }
 
-// Not met yet (measured 2026-11-26, `cargo test --release -p slamkit-slam --test
-// visual_fast_motion -- --ignored --nocapture`): KLT tracks all 17 frames but the ATE is
-// 0.292 m; ORB (one pyramid level, the stereo profile) fails 11 of 17 frames and restarts
-// twice. Tried and not kept: KLT searching from the constant-velocity prediction (guesses 1-4
-// px from where the features were found instead of 25-35 px) gave 0.300 m and one failed frame
-// here, and 0.0747 -> 0.111 m on the full-rate clip; ORB falling back on unguided matching
-// found no motion either (scale change between frames 3 m apart, one ORB level).
+// Measured 2026-11-27 (`cargo test --release -p slamkit-slam --test visual_fast_motion --
+// --include-ignored --nocapture`; docs/experiments/visual-slam.md, "Fast motion: why the
+// poses are poor at 3 m steps"): KLT 0.1835 m, every frame tracked, since the stereo profile no
+// longer caps the corners at 500 (0.292 m with the cap: 12-65 correspondences, the rest lost to
+// wrong minima as the near points' windows grow 1.2-1.4x between frames; more pyramid levels
+// or a wider window do not help).
 #[test]
-#[ignore = "issue 20 fast motion not met yet: KLT ATE 0.29 m, ORB 11 of 17 frames fail"]
 fn kitti_06_every_third_frame_klt() {
     tracks_every_frame("kitti_06_every_third_frame_klt", FrontendKind::Klt, 0.20);
 }
 
+// Not met: ORB with the profile's one level fails 11 of 17 frames (no match across the scale
+// change); 3-4 levels track every frame at 0.29-0.30 m (full rate 0.133 -> 0.141 / 0.147 m),
+// 3 levels with points to 40 m 0.233 m (full rate 0.159 m).
 #[test]
-#[ignore = "issue 20 fast motion not met yet: ORB fails 11 of 17 frames"]
+#[ignore = "issue 20 fast motion not met: ORB (1 level) fails 11 of 17 frames; 3-4 levels 0.29 m"]
 fn kitti_06_every_third_frame_orb() {
     tracks_every_frame("kitti_06_every_third_frame_orb", FrontendKind::Orb, 0.20);
 }

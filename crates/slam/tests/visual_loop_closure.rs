@@ -116,12 +116,13 @@ fn kitti_06_clip_has_no_loop_to_close() {
     ) else {
         return;
     };
-    for (frontend, bound) in [(FrontendKind::Klt, 0.08), (FrontendKind::Orb, 0.14)] {
+    // KLT: issue 20's bar, 0.07 m
+    for (frontend, bound) in [(FrontendKind::Klt, 0.07), (FrontendKind::Orb, 0.14)] {
         let (m, stats, _) = run(&dir, DatasetFormat::Kitti, "stereo", frontend);
         // a straight drive: every frame a keyframe (~1 m apart), no place seen twice
         assert_eq!(stats.accepted, 0, "{stats:?}");
         assert!(stats.keyframes >= 45, "{stats:?}");
-        // measured 0.0747 / 0.1328 m, the same as without loop closure
+        // measured 0.0606 / 0.1328 m, the same as without loop closure
         assert!(m.ate.rmse <= bound, "{frontend:?}: ATE {}", m.ate.rmse);
     }
 }
