@@ -7,7 +7,11 @@
 //! is killed and a new one started on the same endpoint: it fetches everything the robots had
 //! sent by query. The merged map
 //! must equal the offline `slamkit map merge` of the maps the robots' messages build (the same
-//! closures, every keyframe within 1e-6). Prints the latencies and bytes for BENCHMARKS.md.
+//! closures, every keyframe within 1e-6). Every merged map goes back to the robots: each ends
+//! with the merger's last map file byte for byte (the restarted robot `a` fetched one by
+//! query), and in a robot's copy `slamkit lidar --localize` finds a stretch of robot `b`'s log
+//! from an unknown start on `b`'s merged trajectory, and `slamkit plan` finds a path from
+//! where `a` started to where `b` ended. Prints the latencies and bytes for BENCHMARKS.md.
 //! Skipped when `SLAMKIT_DATA` is not set; run with `--release`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers fail loudly
 
@@ -72,6 +76,16 @@ fn wait_for(what: &str, timeout: Duration, mut done: impl FnMut() -> bool) {
         assert!(start.elapsed() < timeout, "timed out waiting for {what}");
         std::thread::sleep(Duration::from_millis(100));
     }
+}
+
+/// The rows of a TUM trajectory file: time, x, y, z, qx, qy, qz, qw.
+fn tum(path: &Path) -> Vec<Vec<f64>> {
+    std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+        .map(|l| l.split_whitespace().map(|v| v.parse().unwrap()).collect())
+        .collect()
 }
 
 fn json(path: &Path) -> serde_json::Value {
@@ -146,19 +160,28 @@ fn robot_and_merger_processes_killed_and_restarted_merge_as_offline() {
         if let Some(loss) = loss {
             args.extend(["--loss".to_string(), loss.to_string()]);
         }
+        if name == "b" {
+            args.extend(["--config".to_string(), s(at("b.toml"))]);
+        }
         args
     };
+    // robot b's ICP-SLAM settings from a file, as slamkit lidar takes them (a value no Intel
+    // scan comes near: the run is the default one's)
+    std::fs::write(at("b.toml"), "min_scan_points = 21\n").unwrap();
     let mut a = spawn(&robot_args("a", Some("0.3")), &at("a1.log"));
     let mut b = spawn(&robot_args("b", None), &at("b.log"));
 
-    // robot a killed once it has stored a few messages, then started again on the same store
+    // robot a killed once it has stored a few messages and holds a merged map, then started
+    // again on the same store: the new process gets the merged map again
     let store = at("a").join("updates.skmu");
+    let merged_a = at("a").join("merged.skmap");
     wait_for("robot a's first messages", Duration::from_secs(60), || {
-        stored(&store) >= 5
+        stored(&store) >= 5 && merged_a.exists()
     });
     a.kill().unwrap();
     a.wait().unwrap();
     let before = stored(&store);
+    std::fs::remove_file(&merged_a).unwrap();
     let mut a = spawn(&robot_args("a", Some("0.3")), &at("a2.log"));
 
     // the merger killed too, once robot b has sent a few messages more; a new merger on the
@@ -166,7 +189,7 @@ fn robot_and_merger_processes_killed_and_restarted_merge_as_offline() {
     let store_b = at("b").join("updates.skmu");
     let b_then = stored(&store_b);
     wait_for("robot b's next messages", Duration::from_secs(60), || {
-        stored(&store_b) >= b_then + 3
+        stored(&store_b) >= b_then + 3 && merged_a.exists()
     });
     merger.kill().unwrap();
     merger.wait().unwrap();
@@ -194,15 +217,42 @@ fn robot_and_merger_processes_killed_and_restarted_merge_as_offline() {
         );
         std::thread::sleep(Duration::from_millis(100));
     };
-    for robot in [&mut a, &mut b] {
-        robot.kill().unwrap();
-        robot.wait().unwrap();
-    }
     assert!(exit.success(), "{}", outputs(&at("merger2.log")));
+
+    // the merger's last map reaches both robots; stopped, they write their reports again
+    let merged_map = std::fs::read(at("merged").join("map.skmap")).unwrap();
+    for name in ["a", "b"] {
+        let copy = at(name).join("merged.skmap");
+        wait_for(
+            &format!("robot {name}'s merged map"),
+            Duration::from_secs(20),
+            || std::fs::read(&copy).is_ok_and(|bytes| bytes == merged_map),
+        );
+    }
+    for robot in [&mut a, &mut b] {
+        let status = Command::new("kill")
+            .args(["-INT", &robot.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(status.success());
+        assert!(robot.wait().unwrap().success());
+    }
 
     let robot_a = json(&at("a").join("report.json"));
     let robot_b = json(&at("b").join("report.json"));
     assert_eq!(robot_a["fleet"]["resumed_from_message"], before as u64);
+    assert_eq!(robot_a["config"]["icp"]["min_scan_points"], 20);
+    assert_eq!(robot_b["config"]["icp"]["min_scan_points"], 21);
+    for robot in [&robot_a, &robot_b] {
+        let received = &robot["fleet"]["merged_map"];
+        assert!(received["kept"].as_u64().unwrap() >= 1, "{received}");
+        assert_eq!(received["rejected"], 0, "{received}");
+    }
+    assert!(
+        robot_a["fleet"]["merged_map"]["fetched"].as_u64().unwrap() >= 1,
+        "{}",
+        robot_a["fleet"]["merged_map"]
+    );
     let report = json(&at("merged").join("report.json"));
     let fleet = &report["fleet"];
     assert_eq!(fleet["missing"], 0);
@@ -240,10 +290,59 @@ fn robot_and_merger_processes_killed_and_restarted_merge_as_offline() {
         let d = x.world_from_base.inverse() * y.world_from_base;
         assert!(d.translation.vector.norm() < 1e-6 && d.rotation.angle().abs() < 1e-6);
     }
+    // robot b's scans 1500-1599, found in robot a's copy of the merged map from an unknown
+    // start, on b's keyframes in the merged frame
+    cut(&lines, 1500, 1600, &at("late.clf"));
+    let localised = Command::new(env!("CARGO_BIN_EXE_slamkit"))
+        .args(["lidar", &s(at("late.clf")), "--localize"])
+        .arg(at("a").join("merged.skmap"))
+        .arg("--out")
+        .arg(at("localised"))
+        .output()
+        .unwrap();
+    assert!(localised.status.success(), "{localised:?}");
+    let merged_b = tum(&at("merged").join("trajectory_b.tum"));
+    let found = tum(&at("localised").join("trajectory.tum"));
+    let mut errors: Vec<f64> = found
+        .iter()
+        .filter_map(|p| {
+            let q = merged_b.iter().find(|q| (q[0] - p[0]).abs() < 1e-4)?;
+            Some((p[1] - q[1]).hypot(p[2] - q[2]))
+        })
+        .collect();
+    errors.sort_by(f64::total_cmp);
+    // the merged trajectories hold the keyframes' poses (what the robots' messages carry)
+    assert!(errors.len() >= 10, "{} poses matched", errors.len());
+    let localised_median = errors[errors.len() / 2];
+    assert!(localised_median < 0.1, "median {localised_median} m");
+
+    // a path across both robots' parts on robot b's copy of the grid
+    let start = tum(&at("merged").join("trajectory_a.tum"))[0].clone();
+    let goal = merged_b.last().unwrap().clone();
+    let plan = Command::new(env!("CARGO_BIN_EXE_slamkit"))
+        .arg("plan")
+        .arg("--map")
+        .arg(at("b").join("merged.skmap"))
+        .args([
+            "--start",
+            &format!("{},{}", start[1], start[2]),
+            "--goal",
+            &format!("{},{}", goal[1], goal[2]),
+            "--out",
+            &s(at("plan")),
+        ])
+        .output()
+        .unwrap();
+    assert!(plan.status.success(), "{plan:?}");
+    let planned = json(&at("plan").join("report.json"));
+    assert_eq!(planned["metrics"]["through_unknown"], false, "{planned}");
+
     eprintln!(
         "fleet on loopback in {:.1} s: robot a resumed from message {before}, {} fetched by \
          query; publish→receipt {}; receipt→merged published {}; {} merges; update bytes per \
-         log second a {:.0} / b {:.0} (laser scans {:.0} / {:.0}); closures {} accepted",
+         log second a {:.0} / b {:.0} (laser scans {:.0} / {:.0}); closures {} accepted; \
+         merged maps taken by a {} / b {}; localised in a's copy: median {localised_median:.3} m \
+         over {} keyframes; path {} m",
         started.elapsed().as_secs_f64(),
         fleet["robots"]["a"]["fetched"],
         fleet["publish_to_receipt_ms"],
@@ -262,5 +361,35 @@ fn robot_and_merger_processes_killed_and_restarted_merge_as_offline() {
             .as_f64()
             .unwrap(),
         report["closures_accepted"],
+        robot_a["fleet"]["merged_map"],
+        robot_b["fleet"]["merged_map"],
+        errors.len(),
+        planned["metrics"]["length_m"],
     );
+}
+
+/// `fleet robot --profile/--config` are `slamkit lidar`'s: the same settings code, so the same
+/// one-line errors, before any log is read or peer opened.
+#[test]
+fn a_robot_takes_its_settings_as_slamkit_lidar_does() {
+    let tmp = tempfile::tempdir().unwrap();
+    let config = tmp.path().join("bad.toml");
+    std::fs::write(&config, "nope = 1\n").unwrap();
+    let config = config.to_str().unwrap();
+    let log = tmp.path().join("never-read.clf");
+    let log = log.to_str().unwrap();
+    let stderr = |args: &[&str]| {
+        let out = Command::new(env!("CARGO_BIN_EXE_slamkit"))
+            .args(args)
+            .output()
+            .unwrap();
+        assert!(!out.status.success());
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    for settings in [["--config", config], ["--profile", "no-such-robot"]] {
+        let robot = stderr(&[&["fleet", "robot", log, "--robot", "r1"], &settings[..]].concat());
+        let lidar = stderr(&[&["lidar", log], &settings[..]].concat());
+        assert_eq!(robot, lidar);
+        assert_eq!(robot.lines().count(), 1, "{robot}");
+    }
 }

@@ -1,6 +1,7 @@
 //! Zenoh key expressions of a fleet:
 //! `slamkit/<fleet>/<robot>/keyframes/<seq>`, `slamkit/<fleet>/<robot>/edges/<seq>` and
-//! `slamkit/<fleet>/<robot>/status`.
+//! `slamkit/<fleet>/<robot>/status` from the robots, `slamkit/<fleet>/merged/{map,report,status}`
+//! from the merger.
 
 use crate::FleetError;
 use slamkit_slam::map_updates::{MapUpdate, Stream};
@@ -34,6 +35,34 @@ pub fn robot_keys(fleet: &str, robot: &str) -> String {
 /// Every robot's messages of a fleet.
 pub fn fleet_keys(fleet: &str) -> String {
     format!("slamkit/{fleet}/*/**")
+}
+
+/// What the merger publishes under `slamkit/<fleet>/merged/`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Merged {
+    /// The merged map, a `.skmap` file's bytes.
+    Map,
+    /// The merge's report, JSON.
+    Report,
+    /// The Zenoh timestamp of the latest merged map, as text, every second: a robot that
+    /// holds an older one (it missed a publication, or joined late) asks for the map.
+    Status,
+}
+
+/// The key of the merger's `what`.
+///
+/// ```
+/// use slamkit_fleet::keys::{merged_key, Merged};
+/// assert_eq!(merged_key("lab", Merged::Map), "slamkit/lab/merged/map");
+/// assert_eq!(merged_key("lab", Merged::Status), "slamkit/lab/merged/status");
+/// ```
+pub fn merged_key(fleet: &str, what: Merged) -> String {
+    let what = match what {
+        Merged::Map => "map",
+        Merged::Report => "report",
+        Merged::Status => "status",
+    };
+    format!("slamkit/{fleet}/merged/{what}")
 }
 
 /// The robot and stream a key names.

@@ -155,6 +155,8 @@ impl Merger {
             .session
             .get(selector)
             .consolidation(zenoh::query::ConsolidationMode::None)
+            // not its own merged map's queryable, which a status query's `*` would match
+            .allowed_destination(zenoh::sample::Locality::Remote)
             .timeout(timeout)
             .wait()
             .map_err(FleetError::zenoh)?;

@@ -2,22 +2,26 @@
 //! robots' map updates as they come, fetches what is missing, merges the robots' maps every
 //! `merge_every_s` while updates arrive, and publishes each merged map on
 //! `slamkit/<fleet>/merged/map` (the `.skmap` file's bytes) and its report on
-//! `slamkit/<fleet>/merged/report` (JSON), both also answered to queries, so a robot that
-//! joins late gets the latest. Started after the robots, or again after a crash, it asks every
-//! robot for its status and fetches everything they sent: the same merged map as if it had
-//! run all along.
+//! `slamkit/<fleet>/merged/report` (JSON), both with one Zenoh timestamp and both also
+//! answered to queries; every second it publishes that timestamp on
+//! `slamkit/<fleet>/merged/status`, so a robot that holds an older map (it joined late, or
+//! missed the publication) asks for the latest ([`crate::merged_map`]). Started after the
+//! robots, or again after a crash, it asks every robot for its status and fetches everything
+//! they sent: the same merged map as if it had run all along.
 
-use crate::keys::check_name;
+use crate::keys::{check_name, merged_key, Merged as Key};
 use crate::merger::{Merger, PUBLISH_TO_RECEIPT};
 use crate::{FleetError, PeerConfig};
 use serde_json::{json, Value};
 use slamkit_slam::lidar::LidarMap;
-use slamkit_slam::merge::output::write_merge;
+use slamkit_slam::map_file::MapFile;
+use slamkit_slam::merge::output::{merged_map_file, write_merge_file};
 use slamkit_slam::merge::{merge_maps, MergeConfig, MergeOutcome};
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
+use zenoh::time::Timestamp;
 use zenoh::Wait;
 
 /// The stage of [`MergerNode::timings`] from the arrival of the oldest update a merge holds
@@ -30,9 +34,12 @@ const QUERY_TIMEOUT: Duration = Duration::from_secs(2);
 const STEP: Duration = Duration::from_millis(100);
 /// How long, when stopping, the merger goes on fetching what the robots say they sent.
 const FINAL_FETCH: Duration = Duration::from_secs(15);
+/// The merged status goes out this often.
+const STATUS_EVERY: Duration = Duration::from_secs(1);
 
-/// The latest merged publications (key, bytes), shared with the queryable that answers them.
-type Publications = Arc<Mutex<Vec<(String, Vec<u8>)>>>;
+/// The latest merged publications (key, bytes) and their timestamp, shared with the queryable
+/// that answers them.
+type Publications = Arc<Mutex<(Vec<(String, Vec<u8>)>, Option<Timestamp>)>>;
 
 /// Settings of a merger process.
 #[derive(Debug, Clone)]
@@ -66,11 +73,12 @@ impl MergerNodeConfig {
     }
 }
 
-/// The latest merge: its inputs and outcome.
+/// The latest merge: its inputs and outcome, and the map file sent to the robots.
 struct Merged {
     names: Vec<String>,
     maps: Vec<LidarMap>,
     outcome: MergeOutcome,
+    file: MapFile,
 }
 
 /// A running merger.
@@ -82,6 +90,7 @@ pub struct MergerNode {
     _queryable: zenoh::query::Queryable<()>,
     merged: Option<Merged>,
     last_merge: Option<Instant>,
+    last_status: Option<Instant>,
     merges: usize,
     timings: slamkit_core::StageTimings,
     started: Instant,
@@ -110,13 +119,13 @@ impl MergerNode {
         let queryable = session
             .declare_queryable(format!("slamkit/{}/merged/**", config.fleet))
             .callback(move |query| {
-                let replies = served.lock().map(|l| l.clone()).unwrap_or_default();
+                let (replies, stamp) = served.lock().map(|l| l.clone()).unwrap_or_default();
                 for (key, bytes) in replies {
                     let wanted = zenoh::key_expr::KeyExpr::try_from(key.as_str())
                         .is_ok_and(|k| query.key_expr().intersects(&k));
                     if wanted {
                         // an answer that cannot go out is asked for again
-                        let _ = query.reply(key, bytes).wait();
+                        let _ = query.reply(key, bytes).timestamp(stamp).wait();
                     }
                 }
             })
@@ -131,6 +140,7 @@ impl MergerNode {
             _queryable: queryable,
             merged: None,
             last_merge: None,
+            last_status: None,
             merges: 0,
             timings: slamkit_core::StageTimings::default(),
             started: Instant::now(),
@@ -155,6 +165,7 @@ impl MergerNode {
             if due && self.merger.unmerged_since().is_some() {
                 self.merge()?;
             }
+            self.status_if_due()?;
         }
         let until = Instant::now() + FINAL_FETCH;
         self.merger.receive(STEP)?;
@@ -179,33 +190,21 @@ impl MergerNode {
         let since = self.merger.unmerged_since();
         self.merger.mark_merged();
         let outcome = merge_maps(&maps, &self.config.merge)?;
-        let merged = Merged {
-            names,
-            maps,
-            outcome,
+        let key = |what| merged_key(&self.config.fleet, what);
+        let encoding_failed = |source| FleetError::Message {
+            key: key(Key::Map),
+            source,
         };
-        let map_bytes = merged
-            .outcome
-            .map
-            .to_new_file(json!({ "method": "fleet merger", "inputs": merged.names }))
-            .and_then(|f| f.to_bytes())
-            .map_err(|source| FleetError::Message {
-                key: self.merged_key("map"),
-                source,
-            })?;
-        let report = merged
-            .outcome
-            .report(&merged.names, &[])
-            .to_string()
-            .into_bytes();
-        let publications = vec![
-            (self.merged_key("map"), map_bytes),
-            (self.merged_key("report"), report),
-        ];
+        let file = merged_map_file(&outcome, &names, "fleet merger").map_err(encoding_failed)?;
+        let map_bytes = file.to_bytes().map_err(encoding_failed)?;
+        let report = outcome.report(&names, &[]).to_string().into_bytes();
+        let publications = vec![(key(Key::Map), map_bytes), (key(Key::Report), report)];
+        let stamp = self.merger.session().new_timestamp();
         for (key, bytes) in &publications {
             self.merger
                 .session()
                 .put(key.clone(), bytes.clone())
+                .timestamp(stamp)
                 .wait()
                 .map_err(FleetError::zenoh)?;
         }
@@ -213,16 +212,39 @@ impl MergerNode {
             self.timings.record_since(RECEIPT_TO_MERGED, since);
         }
         if let Ok(mut latest) = self.latest.lock() {
-            *latest = publications;
+            *latest = (publications, Some(stamp));
         }
-        self.merged = Some(merged);
+        self.merged = Some(Merged {
+            names,
+            maps,
+            outcome,
+            file,
+        });
         self.last_merge = Some(Instant::now());
+        self.last_status = None;
         self.merges += 1;
-        Ok(())
+        self.status_if_due()
     }
 
-    fn merged_key(&self, what: &str) -> String {
-        format!("slamkit/{}/merged/{what}", self.config.fleet)
+    /// Publishes the latest merged map's timestamp when a second has passed since the last
+    /// time (nothing before the first merge).
+    fn status_if_due(&mut self) -> Result<(), FleetError> {
+        let due = self
+            .last_status
+            .map_or(true, |t| t.elapsed() >= STATUS_EVERY);
+        let stamp = self.latest.lock().ok().and_then(|l| l.1);
+        if let (true, Some(stamp)) = (due, stamp) {
+            self.merger
+                .session()
+                .put(
+                    merged_key(&self.config.fleet, Key::Status),
+                    stamp.to_string(),
+                )
+                .wait()
+                .map_err(FleetError::zenoh)?;
+            self.last_status = Some(Instant::now());
+        }
+        Ok(())
     }
 
     /// The merger underneath: each robot's map and traffic.
@@ -243,7 +265,7 @@ impl MergerNode {
     }
 
     /// Writes the latest merge into the folder `dir` as `slamkit map merge` does
-    /// ([`write_merge`]) and returns the report: the merge's, with each robot's traffic, the
+    /// ([`write_merge_file`]; its `map.skmap` holds the bytes sent to the robots) and returns the report: the merge's, with each robot's traffic, the
     /// latencies (median, p95) and the merges run.
     ///
     /// # Errors
@@ -256,11 +278,11 @@ impl MergerNode {
                 self.merger.maps().0.len()
             )))
         })?;
-        let mut report = write_merge(
+        let mut report = write_merge_file(
+            &merged.file,
             &merged.outcome,
             &merged.maps,
             &merged.names,
-            "fleet merger",
             dir,
         )?;
         let timings = self.timings().summary();

@@ -4,7 +4,10 @@
 //! started again with the same store runs the log again from the start as fast as it can
 //! (the same input gives the same messages, which it checks against the stored ones) without
 //! sending what it had sent, then goes on at the chosen rate from its next sequence number.
+//! All along it keeps the fleet's newest merged map in a file ([`MergedMapInbox`]), which it
+//! can localise and plan in.
 
+use crate::merged_map::MergedMapInbox;
 use crate::robot::RobotPublisher;
 use crate::{FleetError, PeerConfig};
 use serde_json::{json, Value};
@@ -19,7 +22,8 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-/// The files [`RobotNode::write`] writes, and the report.
+/// The files [`RobotNode::write`] writes, and the report. (The store and the merged map,
+/// `updates.skmu` and `merged.skmap` by default, are written as they change, not with these.)
 pub const ROBOT_FILES: &[&str] = &["trajectory.tum", "map.skmap", "sent.skmap", "report.json"];
 
 /// A status goes out this often \[s of wall time\] while the robot runs and after.
@@ -42,18 +46,22 @@ pub struct RobotNodeConfig {
     pub updates: UpdateConfig,
     /// The file every message is kept in; a restarted robot with the same file resumes.
     pub store: PathBuf,
+    /// The file the fleet's newest merged map is kept in.
+    pub merged_map: PathBuf,
     /// Fraction of publications dropped on purpose, and the seed of the draws (tests of
     /// recovery: a dropped message is still stored and served to queries).
     pub loss: Option<(f64, u64)>,
 }
 
 impl RobotNodeConfig {
-    /// Robot `robot` of `fleet` on `peer`, its messages kept in `<out>/updates.skmu`, playing
-    /// its log in real time with the default [`UpdateConfig`] and no loss on purpose.
+    /// Robot `robot` of `fleet` on `peer`, its messages kept in `<out>/updates.skmu` and the
+    /// merged map in `<out>/merged.skmap`, playing its log in real time with the default
+    /// [`UpdateConfig`] and no loss on purpose.
     ///
     /// ```
     /// let config = slamkit_fleet::RobotNodeConfig::new("lab", "r1", Default::default(), "out/r1".as_ref());
     /// assert_eq!(config.store, std::path::Path::new("out/r1/updates.skmu"));
+    /// assert_eq!(config.merged_map, std::path::Path::new("out/r1/merged.skmap"));
     /// ```
     pub fn new(fleet: &str, robot: &str, peer: PeerConfig, out: &Path) -> Self {
         Self {
@@ -63,6 +71,7 @@ impl RobotNodeConfig {
             rate: 1.0,
             updates: UpdateConfig::default(),
             store: out.join("updates.skmu"),
+            merged_map: out.join("merged.skmap"),
             loss: None,
         }
     }
@@ -73,6 +82,7 @@ pub struct RobotNode {
     config: RobotNodeConfig,
     slam: LidarSlam,
     publisher: RobotPublisher,
+    merged: MergedMapInbox,
     outbox: UpdateOutbox,
     /// The map as the robot's messages tell it: what a merger holds once it has them all.
     sent: RobotInbox,
@@ -111,14 +121,17 @@ impl RobotNode {
         }
         crate::keys::check_name(&config.fleet)?;
         crate::keys::check_name(&config.robot)?;
-        if let Some(dir) = config.store.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir).map_err(|source| FleetError::Store {
-                path: dir.to_path_buf(),
-                source,
-            })?;
+        for file in [&config.store, &config.merged_map] {
+            if let Some(dir) = file.parent().filter(|d| !d.as_os_str().is_empty()) {
+                std::fs::create_dir_all(dir).map_err(|source| FleetError::Store {
+                    path: dir.to_path_buf(),
+                    source,
+                })?;
+            }
         }
         let outbox = UpdateOutbox::new(config.updates.clone())?;
         let session = config.peer.open()?;
+        let merged = MergedMapInbox::new(session.clone(), &config.fleet, &config.merged_map)?;
         let mut publisher = RobotPublisher::new(session, &config.fleet, &config.robot)?
             .with_store_file(&config.store)?;
         if let Some((p, seed)) = config.loss {
@@ -129,6 +142,7 @@ impl RobotNode {
             config,
             slam,
             publisher,
+            merged,
             outbox,
             sent: RobotInbox::default(),
             resumed_from,
@@ -140,9 +154,9 @@ impl RobotNode {
     }
 
     /// Plays `log` through the session at the configured rate (the part its stored messages
-    /// cover as fast as it can), publishing the map updates as they are due; at the end sends
-    /// what is left and its status. `progress` is called after each scan. Returns `false` when
-    /// `stop` cut the run short.
+    /// cover as fast as it can), publishing the map updates as they are due and taking the
+    /// merged maps that come; at the end sends what is left and its status. `progress` is
+    /// called after each scan. Returns `false` when `stop` cut the run short.
     ///
     /// # Errors
     /// [`FleetError::Message`] for a message that differs from the one of its number in the
@@ -170,6 +184,7 @@ impl RobotNode {
                         return Ok(false);
                     }
                     self.status_if_due()?;
+                    self.merged.poll()?;
                     std::thread::sleep(NAP.min(due.saturating_duration_since(Instant::now())));
                 }
             }
@@ -183,6 +198,7 @@ impl RobotNode {
             if self.outbox.sent() >= self.resumed_from {
                 self.status_if_due()?;
             }
+            self.merged.poll()?;
             self.scans_done += 1;
             progress(self.scans_done);
         }
@@ -196,14 +212,16 @@ impl RobotNode {
         Ok(true)
     }
 
-    /// After the log: keeps answering queries, and sends its status every second, until
-    /// `stop` is set.
+    /// After the log: keeps answering queries, sending its status every second and taking
+    /// the merged maps that come, until `stop` is set.
     ///
     /// # Errors
-    /// The publisher's errors.
+    /// The publisher's errors, and [`FleetError::Store`] when the merged map cannot be
+    /// written.
     pub fn serve(&mut self, stop: &AtomicBool) -> Result<(), FleetError> {
         while !stop.load(Ordering::Relaxed) {
             self.status_if_due()?;
+            self.merged.poll()?;
             std::thread::sleep(NAP);
         }
         Ok(())
@@ -261,8 +279,8 @@ impl RobotNode {
     }
 
     /// The run's report: the session's ([`LidarSlam::run_report`] on `log`) with the fleet's
-    /// counts: messages and bytes sent, and the bytes of the map updates per second of the
-    /// log against those of the scans as ROS 2 `LaserScan`s.
+    /// counts: messages and bytes sent, the bytes of the map updates per second of the log
+    /// against those of the scans as ROS 2 `LaserScan`s, and the merged maps taken so far.
     pub fn report(&self, log: &CarmenLog) -> Value {
         let mut report = self.slam.run_report(log);
         let scans = &log.scans[..self.scans_done.min(log.scans.len())];
@@ -290,6 +308,8 @@ impl RobotNode {
             "laser_scan_bytes_per_log_second": raw_bytes as f64 / log_seconds,
             "update_fraction_of_laser_scans": update_bytes as f64 / raw_bytes as f64,
             "sent_map_keyframes": self.sent.map().keyframes.len(),
+            "merged_map": self.merged.receipts(),
+            "merged_map_file": self.merged.path(),
         });
         report["wall_seconds"] = json!(self.started.elapsed().as_secs_f64());
         report

@@ -5,7 +5,7 @@ use crate::output::{finish, progress_bar, stop_flag};
 use slamkit_fleet::{robot_node::ROBOT_FILES, MergerNode, MergerNodeConfig, PeerConfig};
 use slamkit_fleet::{RobotNode, RobotNodeConfig};
 use slamkit_io::output_folder::OutputFolder;
-use slamkit_slam::{merge::output::MERGE_FILES, LidarSlam, LidarSlamConfig};
+use slamkit_slam::{merge::output::MERGE_FILES, LidarMethod, LidarSlam, LidarSlamConfig};
 use std::path::PathBuf;
 
 /// Arguments of `slamkit fleet`: one process of a fleet, on explicit endpoints such as
@@ -30,8 +30,10 @@ pub struct FleetArgs {
 
 #[derive(Debug, clap::Subcommand)]
 enum FleetCommand {
-    /// ICP-SLAM on a CARMEN log or ROS 1 bag played at `--rate`, publishing its map updates;
-    /// then writes trajectory.tum, map.skmap, sent.skmap and answers queries until Ctrl-C.
+    /// ICP-SLAM on a CARMEN log or ROS 1 bag played at `--rate`, publishing its map updates
+    /// and keeping the fleet's newest merged map in merged.skmap; then writes trajectory.tum,
+    /// map.skmap, sent.skmap and report.json, and answers queries until Ctrl-C, when it writes
+    /// report.json again with the merged maps taken since.
     Robot {
         /// The log.
         log: PathBuf,
@@ -44,6 +46,14 @@ enum FleetCommand {
         /// Drop this fraction of publications on purpose (tests of recovery by query).
         #[arg(long)]
         loss: Option<f64>,
+        /// Named profile of the robot (or a profile file `X.toml`): its `[lidar]` settings,
+        /// as `slamkit lidar --profile` takes them.
+        #[arg(long)]
+        profile: Option<String>,
+        /// TOML file with ICP-SLAM's settings laid over the profile's, as `slamkit lidar
+        /// --config` takes them for a new ICP map.
+        #[arg(long)]
+        config: Option<PathBuf>,
     },
     /// Merges the robots' maps as updates arrive, publishes each merge on
     /// `slamkit/<fleet>/merged/{map,report}`; on Ctrl-C writes the last as `map merge` does.
@@ -67,21 +77,33 @@ pub fn run(args: &FleetArgs) -> anyhow::Result<()> {
             robot,
             rate,
             loss,
+            profile,
+            config,
         } => {
+            let settings = LidarSlamConfig::from_files(
+                LidarMethod::Icp,
+                false,
+                profile.as_deref(),
+                config.as_deref(),
+            )?;
             let log = crate::commands::lidar::read_log(log, &Default::default())?;
-            let slam = LidarSlam::new(LidarSlamConfig::default(), Default::default())?;
+            let slam = LidarSlam::new(settings, Default::default())?;
             let mut config = RobotNodeConfig::new(&args.fleet, robot, peer, out);
             (config.rate, config.loss) = (*rate, loss.map(|p| (p, 1)));
             let mut node = RobotNode::start(config, slam)?;
             let bar = progress_bar(log.scans.len() as u64, "robot");
             let done = node.play(&log, &stop, |n| bar.set_position(n as u64))?;
-            let folder = OutputFolder::create(out, ROBOT_FILES)?;
-            let report = node.write(folder.path(), &log)?;
-            finish(folder, &report)?;
+            let write = |node: &RobotNode| -> anyhow::Result<()> {
+                let folder = OutputFolder::create(out, ROBOT_FILES)?;
+                let report = node.write(folder.path(), &log)?;
+                finish(folder, &report)
+            };
+            write(&node)?;
             bar.finish_and_clear();
             let done = if done { "done" } else { "stopped" };
             println!("log {done}; answering queries until Ctrl-C");
-            Ok(node.serve(&stop)?)
+            node.serve(&stop)?;
+            write(&node)
         }
         FleetCommand::Merger { merge_every } => {
             let mut config = MergerNodeConfig::new(&args.fleet, peer);

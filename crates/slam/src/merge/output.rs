@@ -4,6 +4,7 @@
 use super::MergeOutcome;
 use crate::lidar::LidarMap;
 use crate::map_file::export::export;
+use crate::map_file::{MapFile, MapFileError};
 use crate::SlamError;
 use std::path::Path;
 
@@ -20,11 +21,26 @@ pub const MERGE_FILES: &[&str] = &[
     "report.json",
 ];
 
+/// The merged map of `outcome` as a map file, its header's notes `method` and the inputs'
+/// `names`: what [`write_merge`] saves as `map.skmap`, and what a fleet's merger sends to its
+/// robots.
+///
+/// # Errors
+/// [`MapFileError`] when the map cannot be encoded.
+pub fn merged_map_file(
+    outcome: &MergeOutcome,
+    names: &[String],
+    method: &str,
+) -> Result<MapFile, MapFileError> {
+    let notes = serde_json::json!({ "method": method, "inputs": names });
+    outcome.map.to_new_file(notes)
+}
+
 /// Writes the merged map of `outcome` into the folder `dir` (which must exist): `map.skmap`
-/// (its header's notes: `method` and the inputs' `names`), its exports (grid, cloud, keyframe
-/// trajectory; [`export`]) and `trajectory_<name>.tum` for each merged input, every scan of
-/// its runs in the merged frame. Returns the merge's report ([`MergeOutcome::report`]) with
-/// each closure's keyframe times taken from `maps`, the merge's inputs.
+/// ([`merged_map_file`]), its exports (grid, cloud, keyframe trajectory; [`export`]) and
+/// `trajectory_<name>.tum` for each merged input, every scan of its runs in the merged frame.
+/// Returns the merge's report ([`MergeOutcome::report`]) with each closure's keyframe times
+/// taken from `maps`, the merge's inputs.
 ///
 /// # Errors
 /// [`SlamError::MapFile`] when the map file cannot be written, and the exporters' and
@@ -36,17 +52,31 @@ pub fn write_merge(
     method: &str,
     dir: &Path,
 ) -> Result<serde_json::Value, SlamError> {
+    let file = merged_map_file(outcome, names, method).map_err(|source| SlamError::MapFile {
+        path: dir.join("map.skmap"),
+        source,
+    })?;
+    write_merge_file(&file, outcome, maps, names, dir)
+}
+
+/// [`write_merge`] with the merged map file already made (`file`, [`merged_map_file`] of
+/// `outcome`), saved as it is: a fleet's merger writes the very bytes it sent its robots.
+///
+/// # Errors
+/// As [`write_merge`].
+pub fn write_merge_file(
+    file: &MapFile,
+    outcome: &MergeOutcome,
+    maps: &[LidarMap],
+    names: &[String],
+    dir: &Path,
+) -> Result<serde_json::Value, SlamError> {
     let path = dir.join("map.skmap");
-    let notes = serde_json::json!({ "method": method, "inputs": names });
-    let file = outcome
-        .map
-        .to_new_file(notes)
-        .and_then(|f| f.save(&path).map(|()| f))
-        .map_err(|source| SlamError::MapFile {
-            path: path.clone(),
-            source,
-        })?;
-    export(&file, &path, dir)?;
+    file.save(&path).map_err(|source| SlamError::MapFile {
+        path: path.clone(),
+        source,
+    })?;
+    export(file, &path, dir)?;
     for (name, input) in names.iter().zip(&outcome.inputs) {
         if let Some(trajectory) = &input.trajectory {
             let path = dir.join(format!("trajectory_{name}.tum"));
