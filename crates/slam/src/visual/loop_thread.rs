@@ -238,7 +238,7 @@ mod tests {
         // at once: the back end on the tracking thread, each correction applied to the
         // next frame
         let mut inline = LoopClosing::new(&config).unwrap();
-        drive_with(1, false, |t, pose, place, joined| {
+        drive_with(1, false, 156, |t, pose, place, joined| {
             inline
                 .add_frame(t, pose, Some(place), joined)
                 .map(|c| c.corrected_from_world)
@@ -246,7 +246,7 @@ mod tests {
         // on the thread, with a tracker that takes corrections every 7th frame only: the
         // frames between a closure and its correction arrive in the old world
         let mut thread = LoopThread::start(&config).unwrap();
-        drive_with(1, false, |t, pose, place, joined| {
+        drive_with(1, false, 156, |t, pose, place, joined| {
             thread.add_frame(t, pose, Some(place), joined);
             if (t as usize) % 7 != 0 {
                 return None;
