@@ -456,15 +456,14 @@ impl VisualSlam {
         }
     }
 
-    /// Moves the tracking state with the map when loops closed since the last call, and says
-    /// so.
+    /// Moves the tracking state with the map when loops closed or a frame was localised in
+    /// the map since the last call; true when a loop closed (the map moved).
     fn take_correction(&mut self) -> bool {
-        let Some(corrected_from_world) = self.loops.as_mut().and_then(LoopThread::take_correction)
-        else {
+        let Some(c) = self.loops.as_mut().and_then(LoopThread::take_correction) else {
             return false;
         };
-        self.odometry.correct(&corrected_from_world);
-        true
+        self.odometry.correct(&c.corrected_from_world);
+        c.loop_closed
     }
 
     /// The trajectory of every tracked frame as loop closure left it, once the loop-closing
@@ -483,6 +482,16 @@ impl VisualSlam {
             let state = l.state();
             (state.stats(), state.closures(&self.tracked_from_camera))
         })
+    }
+
+    /// The frames that were due to become keyframes but were localised against an existing
+    /// keyframe instead (`loop_closure.cull_redundant_keyframes`), each as a loop from the
+    /// frame (query) to the keyframe (candidate) in the rig's reference camera, so that they
+    /// can be checked as closures are ([`check_closures`]); `None` when loop closure is off.
+    pub fn map_localisations(&self) -> Option<Vec<LoopClosure>> {
+        self.loops
+            .as_ref()
+            .map(|l| l.state().localisations(&self.tracked_from_camera))
     }
 
     /// Records the frame just tracked, at `pose`, as a keyframe of the map, its points moved

@@ -57,6 +57,14 @@ pub struct LoopClosureConfig {
     pub odometry_sigma: (f64, f64),
     /// Scale of the Cauchy kernel of loop edges (Mahalanobis units).
     pub loop_robust_scale: f64,
+    /// Keep the map bounded on revisits: a frame due to become a keyframe (by the distance
+    /// and angle rules) that lies within those of an existing keyframe and is verified against
+    /// it (as a loop is), with a pose within `max_localisation_correction` of odometry's, is
+    /// localised in the map instead of added: it re-observes that keyframe's points.
+    pub cull_redundant_keyframes: bool,
+    /// Largest disagreement between odometry and a localisation in the map, translation \[m\]
+    /// and rotation \[deg\]; a larger one is drift for loop closure to correct.
+    pub max_localisation_correction: (f64, f64),
     /// Finding the camera in the map again when tracking is lost (verified as loops are).
     pub relocalisation: RelocalisationConfig,
     /// Tracking against a saved map's points (`slamkit vo --localize`).
@@ -81,6 +89,8 @@ impl Default for LoopClosureConfig {
             association_tolerance: (0.03, 0.03),
             odometry_sigma: (0.01, 0.01),
             loop_robust_scale: 3.0,
+            cull_redundant_keyframes: true,
+            max_localisation_correction: (0.05, 3.0),
             relocalisation: RelocalisationConfig::default(),
             map_tracking: MapTrackingConfig::default(),
         }
@@ -102,6 +112,14 @@ impl LoopClosureConfig {
             ("loop_closure.odometry_sigma", self.odometry_sigma.0),
             ("loop_closure.odometry_sigma", self.odometry_sigma.1),
             ("loop_closure.loop_robust_scale", self.loop_robust_scale),
+            (
+                "loop_closure.max_localisation_correction",
+                self.max_localisation_correction.0,
+            ),
+            (
+                "loop_closure.max_localisation_correction",
+                self.max_localisation_correction.1,
+            ),
             (
                 "loop_closure.verification.max_rms_m",
                 self.verification.max_rms_m,

@@ -14,6 +14,20 @@
 //! Levenberg–Marquardt then optimises, the first keyframe fixed. The whole tracking state then
 //! moves with the newest keyframe ([`slamkit_vo::Odometry::correct`]).
 //!
+//! The map stays bounded when the robot comes back (`cull_redundant_keyframes`): a frame due
+//! to become a keyframe that lies within the keyframe spacing of an existing keyframe (so that
+//! keyframe already stands for its view) is verified against it as a loop is; when the
+//! measured pose agrees with odometry's to `max_localisation_correction`, the frame is
+//! localised in the map instead of added. Its features re-observe that keyframe's map points
+//! (no new map point, no place-index entry, no pose-graph node), the keyframe becomes the
+//! reference the following frames are attached to (and the next keyframe's odometry edge
+//! starts from), and the tracker is moved onto the measured pose (only the tracker moves, not
+//! the map). A larger disagreement is drift: the frame becomes a keyframe and loop detection
+//! deals with it. This is the alternative to ORB-SLAM's culling rule (a keyframe whose map
+//! points are 90 % seen by three others) for a back end whose keyframes are linked to their
+//! predecessor only: a redundant keyframe is never made, so nothing has to be unlinked from
+//! the place index, the covisibility graph or the pose graph.
+//!
 //! When tracking is lost, each new frame is looked for among the keyframes
 //! ([`LoopClosing::relocalise`], `slamkit_vo::relocalisation`); the frame it is found in
 //! becomes a keyframe joined to the one it was verified against by the measured relative pose,
@@ -21,7 +35,7 @@
 //!
 //! Poses here are `world_from_tracked` of the tracked camera (the one features are in).
 
-use nalgebra::{Matrix6, Vector6};
+use nalgebra::{Matrix6, UnitQuaternion, Vector6};
 use serde::Serialize;
 use slamkit_core::{Pose3, Trajectory};
 use slamkit_vo::covisibility::{associate, Covisibility, PlaceFeatures};
@@ -67,6 +81,9 @@ pub struct LoopStats {
     pub accepted: usize,
     /// Verified candidates rejected by geometry.
     pub rejected: usize,
+    /// Frames due to become keyframes that were localised against an existing keyframe
+    /// instead (`cull_redundant_keyframes`): keyframes the map did not grow by.
+    pub localised: usize,
     /// Looking for the camera in the map after tracking was lost.
     pub relocalisation: RelocalisationStats,
 }
@@ -85,6 +102,16 @@ pub struct LoopClosure {
     pub inliers: usize,
     /// RMS point distance of the inliers \[m\].
     pub rms_m: f64,
+}
+
+/// How the world moved for the tracker.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct Correction {
+    /// The move of the world (applied to the tracker's whole state).
+    pub(super) corrected_from_world: Pose3,
+    /// A loop closed and the map moved; otherwise a frame was localised in the map and only
+    /// the tracker moves onto it.
+    pub(super) loop_closed: bool,
 }
 
 /// How a tracked frame follows the frames before it.
@@ -121,11 +148,17 @@ pub(super) struct LoopClosing {
     index: PlaceIndex,
     covisibility: Covisibility,
     keyframes: Vec<Keyframe>,
+    /// The keyframe tracked frames are attached to: the last one added, or the one the last
+    /// frame due to become a keyframe was localised against.
+    reference: usize,
     edges: Vec<Edge>,
     consistency: Consistency,
     /// Every tracked frame: time, its keyframe, `keyframe_from_frame`.
     frames: Vec<(f64, usize, Pose3)>,
     closures: Vec<LoopClosure>,
+    /// Frames localised in the map instead of becoming keyframes, as loops (the frame the
+    /// query, the keyframe the candidate).
+    localisations: Vec<LoopClosure>,
     stats: LoopStats,
 }
 
@@ -137,10 +170,12 @@ impl LoopClosing {
             index: PlaceIndex::new(config.place_index.clone())?,
             covisibility: Covisibility::default(),
             keyframes: Vec::new(),
+            reference: 0,
             edges: Vec::new(),
             consistency: Consistency::default(),
             frames: Vec::new(),
             closures: Vec::new(),
+            localisations: Vec::new(),
             stats: LoopStats::default(),
         })
     }
@@ -161,36 +196,55 @@ impl LoopClosing {
     }
 
     /// Takes a tracked frame at `world_from_tracked` with its place features, `joined` to the
-    /// frames before it as it says. Returns `corrected_from_world` when a loop closed and the
-    /// map moved.
+    /// frames before it as it says. Returns the correction when a loop closed (the map moved)
+    /// or the frame was localised in the map (the tracker moves onto it).
     pub(super) fn add_frame(
         &mut self,
         timestamp: f64,
         world_from_tracked: Pose3,
         place: Option<PlaceFeatures>,
         joined: Joined,
-    ) -> Option<Pose3> {
-        let is_keyframe = match self.keyframes.last() {
+    ) -> Option<Correction> {
+        let is_keyframe = match self.keyframes.get(self.reference) {
             None => true,
             Some(k) => {
-                let step = k.world_from_tracked.inverse() * world_from_tracked;
                 joined != Joined::Tracked
-                    || step.translation.vector.norm() >= self.config.keyframe_distance_m
-                    || step.rotation.angle() >= self.config.keyframe_angle_deg.to_radians()
+                    || !self.within_spacing(&(k.world_from_tracked.inverse() * world_from_tracked))
             }
         };
+        let place = place.unwrap_or_default();
+        if is_keyframe && joined == Joined::Tracked {
+            if let Some((keyframe, verified)) = self.localise_in_map(&world_from_tracked, &place) {
+                let keyframe_from_frame = verified.candidate_from_query;
+                self.stats.localised += 1;
+                self.localisations.push(LoopClosure {
+                    query_timestamp: timestamp,
+                    candidate_timestamp: self.keyframes.get(keyframe)?.timestamp,
+                    candidate_from_query: keyframe_from_frame,
+                    inliers: verified.inliers.len(),
+                    rms_m: verified.rms_m,
+                });
+                self.reference = keyframe;
+                self.frames.push((timestamp, keyframe, keyframe_from_frame));
+                let k = self.keyframes.get(keyframe)?;
+                let corrected = k.world_from_tracked * keyframe_from_frame;
+                return Some(Correction {
+                    corrected_from_world: moving(&world_from_tracked, &corrected),
+                    loop_closed: false,
+                });
+            }
+        }
         let correction = if is_keyframe {
-            self.add_keyframe(
-                timestamp,
-                world_from_tracked,
-                place.unwrap_or_default(),
-                joined,
-            )
+            self.add_keyframe(timestamp, world_from_tracked, place, joined)
+                .map(|corrected_from_world| Correction {
+                    corrected_from_world,
+                    loop_closed: true,
+                })
         } else {
             None
         };
-        let last = self.keyframes.len().saturating_sub(1);
-        if let Some(k) = self.keyframes.last() {
+        let last = self.reference;
+        if let Some(k) = self.keyframes.get(last) {
             // a closure moved the keyframe but not `world_from_tracked`: the frame is at the
             // keyframe either way when it is one, else where odometry put it relative to it
             let keyframe_from_frame = if is_keyframe {
@@ -201,6 +255,49 @@ impl LoopClosing {
             self.frames.push((timestamp, last, keyframe_from_frame));
         }
         correction
+    }
+
+    /// True when `step` (a pose relative to a keyframe) is within the distance and angle that
+    /// make a new keyframe.
+    fn within_spacing(&self, step: &Pose3) -> bool {
+        step.translation.vector.norm() < self.config.keyframe_distance_m
+            && step.rotation.angle() < self.config.keyframe_angle_deg.to_radians()
+    }
+
+    /// The keyframe nearest to a frame at `world_from_tracked` (due to become a keyframe)
+    /// within the keyframe spacing, when the frame's features `place` verify against it with a
+    /// pose within `max_localisation_correction` of the one odometry predicts: the keyframe and
+    /// the verification (`candidate_from_query` is `keyframe_from_frame`). `None` when culling
+    /// is off or nothing matches.
+    fn localise_in_map(
+        &self,
+        world_from_tracked: &Pose3,
+        place: &PlaceFeatures,
+    ) -> Option<(usize, VerifiedLoop)> {
+        if !self.config.cull_redundant_keyframes || place.is_empty() {
+            return None;
+        }
+        let (distance_m, angle_deg) = (
+            self.config.keyframe_distance_m,
+            self.config.keyframe_angle_deg,
+        );
+        let closeness = |step: &Pose3| {
+            step.translation.vector.norm() / distance_m
+                + step.rotation.angle().to_degrees() / angle_deg
+        };
+        let (keyframe, predicted) = self
+            .keyframes
+            .iter()
+            .enumerate()
+            .map(|(i, k)| (i, k.world_from_tracked.inverse() * world_from_tracked))
+            .filter(|(_, step)| self.within_spacing(step))
+            .min_by(|a, b| closeness(&a.1).total_cmp(&closeness(&b.1)))?;
+        let k = self.keyframes.get(keyframe)?;
+        let verified = verify(place, &k.features, &self.config.verification).ok()?;
+        let error = predicted.inverse() * verified.candidate_from_query;
+        let (max_m, max_deg) = self.config.max_localisation_correction;
+        (error.translation.vector.norm() <= max_m && error.rotation.angle() <= max_deg.to_radians())
+            .then_some((keyframe, verified))
     }
 
     fn add_keyframe(
@@ -225,7 +322,7 @@ impl LoopClosing {
             });
             links.push((found.keyframe, found.verified.inliers));
             self.consistency.reset();
-        } else if let Some(prev) = self.keyframes.last() {
+        } else if let Some(prev) = self.keyframes.get(self.reference) {
             let prev_from_this = prev.world_from_tracked.inverse() * world_from_tracked;
             let factor = if joined == Joined::Restarted {
                 RESTART_SIGMA_FACTOR
@@ -233,7 +330,7 @@ impl LoopClosing {
                 1.0
             };
             self.edges.push(Edge {
-                from: id - 1,
+                from: self.reference,
                 to: id,
                 from_from_to: prev_from_this,
                 information: self.information(factor),
@@ -246,7 +343,7 @@ impl LoopClosing {
                 &self.config.verification.matching,
                 self.config.association_tolerance,
             );
-            links.push((id - 1, pairs));
+            links.push((self.reference, pairs));
         }
         let added = self.covisibility.add_keyframe(features.len(), &links);
         debug_assert_eq!(added, id);
@@ -257,6 +354,7 @@ impl LoopClosing {
             world_from_tracked,
             features,
         });
+        self.reference = id;
         self.stats.keyframes = self.keyframes.len();
         let correction = closure.and_then(|(candidate, verified)| {
             self.covisibility.merge(candidate, id, &verified.inliers);
@@ -358,7 +456,7 @@ impl LoopClosing {
             k.world_from_tracked = *pose;
         }
         let new = self.keyframes.get(query)?.world_from_tracked;
-        Some(new * old.inverse())
+        Some(moving(&old, &new))
     }
 
     /// Every tracked frame at its keyframe's current pose, moved to the rig's reference
@@ -403,20 +501,43 @@ impl LoopClosing {
 
     /// The accepted loops, their relative poses moved to the rig's reference camera.
     pub(super) fn closures(&self, tracked_from_camera: &Pose3) -> Vec<LoopClosure> {
-        self.closures
-            .iter()
-            .map(|c| LoopClosure {
-                candidate_from_query: tracked_from_camera.inverse()
-                    * c.candidate_from_query
-                    * tracked_from_camera,
-                ..*c
-            })
-            .collect()
+        in_camera(&self.closures, tracked_from_camera)
+    }
+
+    /// The localisations in the map (frames not made keyframes), as [`Self::closures`].
+    pub(super) fn localisations(&self, tracked_from_camera: &Pose3) -> Vec<LoopClosure> {
+        in_camera(&self.localisations, tracked_from_camera)
     }
 
     pub(super) fn stats(&self) -> LoopStats {
         self.stats
     }
+}
+
+/// The move of the world `new · old⁻¹` that takes a pose from `old` to `new`, its rotation
+/// renormalised: the tracker composes one per localisation in the map, and the quaternion
+/// inverse is its conjugate, so a norm off by ε would grow to (1 + ε)² with every
+/// correction (a tracker tilting away after a few dozen localisations).
+fn moving(old: &Pose3, new: &Pose3) -> Pose3 {
+    let m = new * old.inverse();
+    Pose3::from_parts(
+        m.translation,
+        UnitQuaternion::new_normalize(m.rotation.into_inner()),
+    )
+}
+
+/// `relations` with their relative poses moved from the tracked camera to the rig's reference
+/// camera (`tracked_from_camera`).
+fn in_camera(relations: &[LoopClosure], tracked_from_camera: &Pose3) -> Vec<LoopClosure> {
+    relations
+        .iter()
+        .map(|c| LoopClosure {
+            candidate_from_query: tracked_from_camera.inverse()
+                * c.candidate_from_query
+                * tracked_from_camera,
+            ..*c
+        })
+        .collect()
 }
 
 #[cfg(test)]
@@ -494,25 +615,28 @@ pub(super) mod tests {
             ..LoopClosureConfig::default()
         })
         .unwrap();
-        let (truth, odometry) = drive_with(seed, aliased, |t, pose, place, joined| {
-            loops.add_frame(t, pose, Some(place), joined)
+        let (truth, odometry) = drive_with(seed, aliased, 156, |t, pose, place, joined| {
+            loops
+                .add_frame(t, pose, Some(place), joined)
+                .map(|c| c.corrected_from_world)
         });
         (loops, truth, odometry)
     }
 
-    /// The drive of [`drive`], each frame (time, odometry pose, features, how it is joined)
-    /// handed to `back_end`, which returns a correction of the world to apply to odometry;
-    /// the true poses and the odometry's.
+    /// The drive of [`drive`] (`frames` frames, 120 a lap), each frame (time, odometry pose,
+    /// features, how it is joined) handed to `back_end`, which returns a correction of the
+    /// world to apply to odometry; the true poses and the odometry's.
     pub(in crate::visual) fn drive_with(
         seed: u64,
         aliased: bool,
+        frames: u32,
         mut back_end: impl FnMut(f64, Pose3, PlaceFeatures, Joined) -> Option<Pose3>,
     ) -> (Vec<Pose3>, Vec<Pose3>) {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let w = world(&mut rng, 1500, aliased);
         let (mut truth, mut odometry): (Vec<Pose3>, Vec<Pose3>) = (Vec::new(), Vec::new());
         let mut drifted = camera(0.0);
-        for i in 0..156 {
+        for i in 0..frames {
             let a = f64::from(i) * 3f64.to_radians();
             let pose = camera(a);
             if let Some(previous) = truth.last() {
@@ -542,12 +666,7 @@ pub(super) mod tests {
         assert!(stats.accepted >= 1, "{stats:?}");
         assert!(stats.keyframes > 30 && stats.map_points > 1000, "{stats:?}");
         // every closure agrees with the truth (frames are 1 s apart, so time = index)
-        for c in loops.closures(&Pose3::identity()) {
-            let q = truth[c.query_timestamp as usize];
-            let k = truth[c.candidate_timestamp as usize];
-            let err = (k.inverse() * q).inverse() * c.candidate_from_query;
-            assert!(err.translation.vector.norm() < 0.02, "{err}");
-        }
+        assert_relations_right(&loops, &truth);
         // without loop closure the yaw drift is 0.15° × 155 ≈ 23° at the end; with it, the
         // corrected trajectory ends near the truth
         let corrected = loops.trajectory(&Pose3::identity());
@@ -558,6 +677,69 @@ pub(super) mod tests {
         assert!(err.translation.vector.norm() < 0.15, "{err}");
     }
 
+    /// Every closure and localisation of `loops` agrees with `truth` to 2 cm.
+    fn assert_relations_right(loops: &LoopClosing, truth: &[Pose3]) {
+        let relations = loops.closures(&Pose3::identity());
+        for c in relations
+            .iter()
+            .chain(&loops.localisations(&Pose3::identity()))
+        {
+            let q = truth[c.query_timestamp as usize];
+            let k = truth[c.candidate_timestamp as usize];
+            let err = (k.inverse() * q).inverse() * c.candidate_from_query;
+            assert!(err.translation.vector.norm() < 0.02, "{c:?}: {err}");
+        }
+    }
+
+    #[test]
+    fn three_laps_keep_the_keyframes_of_the_first() {
+        let mut loops = LoopClosing::new(&LoopClosureConfig {
+            enabled: true,
+            ..LoopClosureConfig::default()
+        })
+        .unwrap();
+        let mut first_lap = LoopStats::default();
+        let (truth, _) = drive_with(1, false, 360, |t, pose, place, joined| {
+            if t == 120.0 {
+                first_lap = loops.stats();
+            }
+            loops
+                .add_frame(t, pose, Some(place), joined)
+                .map(|c| c.corrected_from_world)
+        });
+        let stats = loops.stats();
+        // the first lap closes its loop; laps 2 and 3 come back to its keyframes' places
+        // (every 6°) and are localised there, a few keyframes added where drift outgrew the
+        // localisation gate before a correction
+        assert!(first_lap.accepted >= 1, "{first_lap:?}");
+        assert!(
+            10 * stats.keyframes <= 11 * first_lap.keyframes,
+            "{first_lap:?} then {stats:?}"
+        );
+        assert!(stats.localised >= 100, "{stats:?}");
+        assert_relations_right(&loops, &truth);
+        let corrected = loops.trajectory(&Pose3::identity());
+        assert_eq!(corrected.len(), truth.len());
+        let end = corrected.poses.last().unwrap().pose;
+        let err = truth.last().unwrap().inverse() * end;
+        assert!(err.rotation.angle().to_degrees() < 3.0, "{err}");
+        assert!(err.translation.vector.norm() < 0.05, "{err}");
+        // without culling every lap adds its keyframes again
+        let mut unculled = LoopClosing::new(&LoopClosureConfig {
+            enabled: true,
+            cull_redundant_keyframes: false,
+            ..LoopClosureConfig::default()
+        })
+        .unwrap();
+        drive_with(1, false, 360, |t, pose, place, joined| {
+            unculled
+                .add_frame(t, pose, Some(place), joined)
+                .map(|c| c.corrected_from_world)
+        });
+        assert!(unculled.stats().keyframes >= 2 * first_lap.keyframes);
+        assert_eq!(unculled.stats().localised, 0);
+    }
+
     #[test]
     fn a_repeated_texture_on_another_wall_is_not_taken_for_a_loop() {
         // half a lap in, the wall repeats the first half's descriptors at other heights:
@@ -565,11 +747,6 @@ pub(super) mod tests {
         let (loops, truth, _) = drive(2, true);
         let stats = loops.stats();
         assert!(stats.rejected >= 1, "{stats:?}");
-        for c in loops.closures(&Pose3::identity()) {
-            let q = truth[c.query_timestamp as usize];
-            let k = truth[c.candidate_timestamp as usize];
-            let err = (k.inverse() * q).inverse() * c.candidate_from_query;
-            assert!(err.translation.vector.norm() < 0.02, "wrong closure {err}");
-        }
+        assert_relations_right(&loops, &truth);
     }
 }

@@ -29,7 +29,7 @@ use slamkit_vo::covisibility::PlaceFeatures;
 use slamkit_vo::loop_closure::LoopClosureConfig;
 use slamkit_vo::relocalisation::Relocalisation;
 
-use super::loop_closing::{Joined, LoopClosing};
+use super::loop_closing::{Correction, Joined, LoopClosing};
 use crate::SlamError;
 
 /// Frames the loop-closing thread may have waiting before the tracker waits for it: two
@@ -55,7 +55,7 @@ enum Request {
 /// The tracker's end of the loop-closing thread.
 pub(super) struct LoopThread {
     sender: Option<Sender<Request>>,
-    corrections: Receiver<Pose3>,
+    corrections: Receiver<Correction>,
     state: Arc<Mutex<LoopClosing>>,
     worker: Option<JoinHandle<StageTimings>>,
     /// Corrections the tracker has taken.
@@ -71,9 +71,9 @@ impl LoopThread {
     pub(super) fn start(config: &LoopClosureConfig) -> Result<Self, SlamError> {
         let state = Arc::new(Mutex::new(LoopClosing::new(config)?));
         let (sender, requests) = bounded::<Request>(QUEUE);
-        // one correction per closed loop: a handful in a run, and never a reason for the
-        // thread to wait
-        let (correct, corrections) = unbounded::<Pose3>();
+        // one correction per closed loop or localisation in the map: at most one per
+        // keyframe spacing, and never a reason for the thread to wait
+        let (correct, corrections) = unbounded::<Correction>();
         let shared = Arc::clone(&state);
         let worker = std::thread::Builder::new()
             .name("vo-loop-closing".into())
@@ -111,13 +111,19 @@ impl LoopThread {
         }
     }
 
-    /// The corrections issued since the last call, as one `corrected_from_world` (`None`
-    /// when no loop closed); the tracker applies it before its next frame.
-    pub(super) fn take_correction(&mut self) -> Option<Pose3> {
-        let mut total: Option<Pose3> = None;
+    /// The corrections issued since the last call, as one (`None` when no loop closed and no
+    /// frame was localised in the map); the tracker applies it before its next frame.
+    pub(super) fn take_correction(&mut self) -> Option<Correction> {
+        let mut total: Option<Correction> = None;
         while let Ok(c) = self.corrections.try_recv() {
             self.epoch += 1;
-            total = Some(c * total.unwrap_or_else(Pose3::identity));
+            total = Some(match total {
+                None => c,
+                Some(t) => Correction {
+                    corrected_from_world: c.corrected_from_world * t.corrected_from_world,
+                    loop_closed: c.loop_closed || t.loop_closed,
+                },
+            });
         }
         total
     }
@@ -168,7 +174,7 @@ impl LoopThread {
 fn serve(
     state: &Mutex<LoopClosing>,
     requests: &Receiver<Request>,
-    correct: &Sender<Pose3>,
+    correct: &Sender<Correction>,
 ) -> StageTimings {
     let mut timings = StageTimings::default();
     // corrections[e] moves the world after e corrections to the world after e + 1
@@ -195,7 +201,7 @@ fn serve(
                         *joined,
                     );
                 if let Some(c) = correction {
-                    corrections.push(c);
+                    corrections.push(c.corrected_from_world);
                     // the tracker gone: its results are read from the state all the same
                     let _ = correct.send(c);
                 }
@@ -232,19 +238,21 @@ mod tests {
         // at once: the back end on the tracking thread, each correction applied to the
         // next frame
         let mut inline = LoopClosing::new(&config).unwrap();
-        drive_with(1, false, |t, pose, place, joined| {
-            inline.add_frame(t, pose, Some(place), joined)
+        drive_with(1, false, 156, |t, pose, place, joined| {
+            inline
+                .add_frame(t, pose, Some(place), joined)
+                .map(|c| c.corrected_from_world)
         });
         // on the thread, with a tracker that takes corrections every 7th frame only: the
         // frames between a closure and its correction arrive in the old world
         let mut thread = LoopThread::start(&config).unwrap();
-        drive_with(1, false, |t, pose, place, joined| {
+        drive_with(1, false, 156, |t, pose, place, joined| {
             thread.add_frame(t, pose, Some(place), joined);
             if (t as usize) % 7 != 0 {
                 return None;
             }
             thread.flush();
-            thread.take_correction()
+            thread.take_correction().map(|c| c.corrected_from_world)
         });
         let expected = inline.trajectory(&Pose3::identity());
         let state = thread.state();
