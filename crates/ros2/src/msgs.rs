@@ -378,6 +378,152 @@ pub struct OccupancyGrid {
     pub data: Vec<i8>,
 }
 
+/// `sensor_msgs/Image`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Image {
+    /// Time of the exposure, and the camera's optical frame.
+    pub header: Header,
+    /// Rows.
+    pub height: u32,
+    /// Columns.
+    pub width: u32,
+    /// Pixel encoding (`rgb8`, `16UC1`, ...).
+    pub encoding: String,
+    /// Whether multi-byte pixels are big endian.
+    pub is_bigendian: u8,
+    /// Bytes per row.
+    pub step: u32,
+    /// The pixels.
+    pub data: Vec<u8>,
+}
+
+impl Image {
+    /// As the bag reader's message (for [`slamkit_io::bag::rgbd`]'s conversions).
+    ///
+    /// # Errors
+    /// A stamp before 1970.
+    pub fn into_bag(self) -> Result<bag::ImageMsg, String> {
+        Ok(bag::ImageMsg {
+            header: self.header.to_bag()?,
+            height: self.height,
+            width: self.width,
+            encoding: self.encoding,
+            is_bigendian: self.is_bigendian,
+            step: self.step,
+            data: self.data,
+        })
+    }
+}
+
+/// `sensor_msgs/CompressedImage`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct CompressedImage {
+    /// Time of the exposure, and the camera's optical frame.
+    pub header: Header,
+    /// `jpeg` or `png` (image_transport writes `rgb8; jpeg compressed bgr8`).
+    pub format: String,
+    /// The compressed file's bytes.
+    pub data: Vec<u8>,
+}
+
+impl CompressedImage {
+    /// As the bag reader's message.
+    ///
+    /// # Errors
+    /// A stamp before 1970.
+    pub fn into_bag(self) -> Result<bag::CompressedImageMsg, String> {
+        Ok(bag::CompressedImageMsg {
+            header: self.header.to_bag()?,
+            format: self.format,
+            data: self.data,
+        })
+    }
+}
+
+/// `sensor_msgs/RegionOfInterest`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct RegionOfInterest {
+    /// Left column.
+    pub x_offset: u32,
+    /// Top row.
+    pub y_offset: u32,
+    /// Rows.
+    pub height: u32,
+    /// Columns.
+    pub width: u32,
+    /// Whether the region is to be rectified.
+    pub do_rectify: bool,
+}
+
+/// `sensor_msgs/CameraInfo`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct CameraInfo {
+    /// Time, and the camera's optical frame.
+    pub header: Header,
+    /// Image rows.
+    pub height: u32,
+    /// Image columns.
+    pub width: u32,
+    /// `plumb_bob`, `rational_polynomial`, ...
+    pub distortion_model: String,
+    /// Distortion coefficients.
+    pub d: Vec<f64>,
+    /// Intrinsic matrix (row-major 3×3).
+    pub k: [f64; 9],
+    /// Rectification rotation (row-major 3×3).
+    pub r: [f64; 9],
+    /// Projection matrix (row-major 3×4).
+    pub p: [f64; 12],
+    /// Horizontal binning.
+    pub binning_x: u32,
+    /// Vertical binning.
+    pub binning_y: u32,
+    /// Region of interest.
+    pub roi: RegionOfInterest,
+}
+
+impl CameraInfo {
+    /// As the bag reader's message (for [`slamkit_io::bag::rgbd::camera_of`]).
+    ///
+    /// # Errors
+    /// A stamp before 1970.
+    pub fn to_bag(&self) -> Result<bag::CameraInfoMsg, String> {
+        let roi = self.roi;
+        Ok(bag::CameraInfoMsg {
+            header: self.header.to_bag()?,
+            height: self.height,
+            width: self.width,
+            distortion_model: self.distortion_model.clone(),
+            d: self.d.clone(),
+            k: self.k,
+            r: self.r,
+            p: self.p,
+            binning_x: self.binning_x,
+            binning_y: self.binning_y,
+            roi: [roi.x_offset, roi.y_offset, roi.height, roi.width],
+            roi_do_rectify: roi.do_rectify,
+        })
+    }
+}
+
+/// `geometry_msgs/PoseStamped`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct PoseStamped {
+    /// Time, and the frame of the pose.
+    pub header: Header,
+    /// The pose.
+    pub pose: Pose,
+}
+
+/// `nav_msgs/Path`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Path {
+    /// Time, and the frame of the poses.
+    pub header: Header,
+    /// The poses, oldest first.
+    pub poses: Vec<PoseStamped>,
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

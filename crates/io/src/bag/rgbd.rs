@@ -292,25 +292,10 @@ impl BagRgbd {
         color: Result<RgbImage, String>,
         depth_m: Result<Image<f32>, String>,
     ) -> Result<Observation, IoError> {
-        let (color, depth_m) = color
-            .and_then(|c| depth_m.map(|d| (c, d)))
-            .map_err(|why| self.frame_error(index, &why))?;
-        if (color.width(), color.height()) != (depth_m.width(), depth_m.height()) {
-            let why = format!(
-                "colour is {}×{}, depth {}×{}: depth must be registered to colour",
-                color.width(),
-                color.height(),
-                depth_m.width(),
-                depth_m.height()
-            );
-            return Err(self.frame_error(index, &why));
-        }
         let timestamp = self.frames.get(index).map_or(f64::NAN, |f| f.timestamp);
-        Ok(Observation::Rgbd(observation::RgbdFrame {
-            timestamp,
-            color,
-            depth_m,
-        }))
+        color
+            .and_then(|c| depth_m.and_then(|d| rgbd_frame(timestamp, c, d)))
+            .map_err(|why| self.frame_error(index, &why))
     }
 
     fn frame_error(&self, index: usize, why: &str) -> IoError {
@@ -413,10 +398,39 @@ fn pick_info(
     }
 }
 
+/// An RGB-D frame of a colour image and the depth image registered to it.
+///
+/// # Errors
+/// Images of different sizes (depth not registered to colour).
+pub fn rgbd_frame(
+    timestamp: f64,
+    color: RgbImage,
+    depth_m: Image<f32>,
+) -> Result<Observation, String> {
+    if (color.width(), color.height()) != (depth_m.width(), depth_m.height()) {
+        return Err(format!(
+            "colour is {}×{}, depth {}×{}: depth must be registered to colour",
+            color.width(),
+            color.height(),
+            depth_m.width(),
+            depth_m.height()
+        ));
+    }
+    Ok(Observation::Rgbd(observation::RgbdFrame {
+        timestamp,
+        color,
+        depth_m,
+    }))
+}
+
 /// The camera of a `CameraInfo`: `K`'s fx, fy, cx, cy, the image size (the colour images'
 /// when the message leaves it 0), and `plumb_bob` / `rational_polynomial` distortion's k1, k2,
 /// p1, p2, k3.
-fn camera_of(
+///
+/// # Errors
+/// A calibration for another image size, a distortion model that is not read, or
+/// intrinsics that do not make a camera.
+pub fn camera_of(
     info: &CameraInfoMsg,
     image_size: Option<(u32, u32)>,
 ) -> Result<PinholeCamera, String> {
@@ -453,7 +467,10 @@ fn camera_of(
 }
 
 /// A colour image message as RGB (`mono8` with three equal channels).
-fn colour_image(msg: &ImageMsg) -> Result<RgbImage, String> {
+///
+/// # Errors
+/// Another encoding, or pixels that do not fit the size.
+pub fn colour_image(msg: &ImageMsg) -> Result<RgbImage, String> {
     let (w, h) = (msg.width as usize, msg.height as usize);
     let pixels = match msg.pixels()? {
         Pixels::Rgb8(p) => p,
@@ -464,7 +481,10 @@ fn colour_image(msg: &ImageMsg) -> Result<RgbImage, String> {
 }
 
 /// A depth image message in metres, 0.0 where there is no depth.
-fn depth_image(msg: &ImageMsg) -> Result<Image<f32>, String> {
+///
+/// # Errors
+/// Another encoding, or pixels that do not fit the size.
+pub fn depth_image(msg: &ImageMsg) -> Result<Image<f32>, String> {
     let (w, h) = (msg.width as usize, msg.height as usize);
     let size_error = || "image size does not match its pixels".to_string();
     match msg.pixels()? {
