@@ -599,6 +599,51 @@ mod tests {
         assert_eq!(decoded, tf.to_bag().unwrap());
     }
 
+    /// The camera messages likewise (and `CompressedImage`).
+    #[test]
+    fn camera_layouts_decode_with_the_bag_readers_cdr_decoder() {
+        use slamkit_io::bag::messages::RosMessage;
+        let header = Header {
+            stamp: Time { sec: 7, nanosec: 9 },
+            frame_id: "camera_color_optical_frame".into(),
+        };
+        let image = Image {
+            header: header.clone(),
+            height: 1,
+            width: 2,
+            encoding: "16UC1".into(),
+            is_bigendian: 0,
+            step: 4,
+            data: vec![1, 2, 3, 4],
+        };
+        let decoded = bag::ImageMsg::decode_cdr(&cdr(&image)).unwrap();
+        assert_eq!(decoded, image.into_bag().unwrap());
+        let info = CameraInfo {
+            header: header.clone(),
+            height: 480,
+            width: 640,
+            distortion_model: "plumb_bob".into(),
+            d: vec![0.1, -0.2, 0.0, 0.0, 0.05],
+            k: [585.0, 0.0, 320.0, 0.0, 585.0, 240.0, 0.0, 0.0, 1.0],
+            roi: RegionOfInterest {
+                x_offset: 1,
+                width: 3,
+                do_rectify: true,
+                ..RegionOfInterest::default()
+            },
+            ..CameraInfo::default()
+        };
+        let decoded = bag::CameraInfoMsg::decode_cdr(&cdr(&info)).unwrap();
+        assert_eq!(decoded, info.to_bag().unwrap());
+        let jpeg = CompressedImage {
+            header,
+            format: "rgb8; jpeg compressed bgr8".into(),
+            data: vec![0xff, 0xd8, 0xff],
+        };
+        let decoded = bag::CompressedImageMsg::decode_cdr(&cdr(&jpeg)).unwrap();
+        assert_eq!(decoded, jpeg.into_bag().unwrap());
+    }
+
     #[test]
     fn odometry_converts_to_the_bag_message() {
         let mut odom = Odometry::default();
