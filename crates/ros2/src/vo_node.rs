@@ -1,5 +1,7 @@
 //! The RGB-D camera node (`slamkit ros2 vo`): colour and depth `sensor_msgs/Image`s (depth
-//! registered to colour) and the colour camera's `sensor_msgs/CameraInfo` in (sensor-data QoS),
+//! registered to colour; `sensor_msgs/CompressedImage` on `image_transport`'s `.../compressed`
+//! and `.../compressedDepth` topics) and the colour camera's `sensor_msgs/CameraInfo` in
+//! (sensor-data QoS),
 //! `/tf_static` for the camera's mounting; a [`VisualSlam`] session, the one `slamkit vo` runs
 //! on a bag, through the same pipeline ([`slamkit_slam::visual::run`]); out, for every tracked
 //! frame: the `map → base` transform on `/tf`, `geometry_msgs/PoseWithCovarianceStamped` on
@@ -34,8 +36,8 @@ use ros2_client::qos::History;
 use ros2_client::Subscription;
 use slamkit_core::camera::PinholeCamera;
 use slamkit_core::{Pose3, StageTimings};
-use slamkit_io::bag::messages::ImageMsg;
-use slamkit_io::bag::rgbd::{camera_of, colour_image, depth_image, rgbd_frame};
+use slamkit_io::bag::camera_image::CameraImage;
+use slamkit_io::bag::rgbd::{camera_of, rgbd_frame};
 use slamkit_io::bag::scans::{add_static_transforms, lookup, StaticTree};
 use slamkit_slam::visual::{self, RunOptions, VisualRun, VisualUpdate};
 use slamkit_slam::{SlamError, VisualSlam};
@@ -140,8 +142,8 @@ pub struct VoNodeRun {
 
 /// A sample taken off a reader.
 enum Incoming {
-    Colour(Instant, msgs::Image),
-    Depth(msgs::Image),
+    Colour(Instant, Result<CameraImage, String>),
+    Depth(Result<CameraImage, String>),
     Info(Box<msgs::CameraInfo>),
     TfStatic(msgs::TfMessage),
     ReadError(String),
@@ -149,18 +151,84 @@ enum Incoming {
 
 /// A colour image paired with its depth image, not yet decoded.
 struct Pair {
-    colour: ImageMsg,
-    depth: ImageMsg,
+    colour: CameraImage,
+    depth: CameraImage,
     stamp: Time,
     received: Instant,
 }
 
 /// The node's DDS readers.
 struct Readers {
-    colour: Subscription<msgs::Image>,
-    depth: Subscription<msgs::Image>,
+    colour: ImageReader,
+    depth: ImageReader,
     info: Subscription<msgs::CameraInfo>,
     tf_static: Subscription<msgs::TfMessage>,
+}
+
+/// A reader of raw or compressed images (`image_transport`'s `.../compressed` and
+/// `.../compressedDepth` topics carry `sensor_msgs/CompressedImage`).
+enum ImageReader {
+    Raw(Subscription<msgs::Image>),
+    Compressed(Subscription<msgs::CompressedImage>),
+}
+
+impl ImageReader {
+    fn open(node: &mut ros2_client::Node, topic: &str) -> Result<Self, Ros2Error> {
+        let qos = sensor_qos();
+        Ok(if is_compressed(topic) {
+            let ty = ("sensor_msgs", "CompressedImage");
+            Self::Compressed(subscribe(node, topic, ty, &qos)?)
+        } else {
+            Self::Raw(subscribe(node, topic, ("sensor_msgs", "Image"), &qos)?)
+        })
+    }
+
+    fn register(
+        &mut self,
+        registry: &ros2_client::dds::rustdds::mio1::Registry,
+        token: Token,
+    ) -> Result<(), Ros2Error> {
+        let registered = match self {
+            Self::Raw(r) => registry.register(r, token, Interest::READABLE),
+            Self::Compressed(r) => registry.register(r, token, Interest::READABLE),
+        };
+        registered.map_err(crate::dds::dds("poll"))
+    }
+
+    /// Takes every waiting image into `tx`, each wrapped by `wrap`; false once `tx` is closed.
+    fn drain(
+        &self,
+        tx: &Sender<Incoming>,
+        wrap: impl Fn(Result<CameraImage, String>) -> Incoming,
+    ) -> bool {
+        match self {
+            Self::Raw(r) => drain(
+                r,
+                tx,
+                |m: msgs::Image, _| wrap(m.into_bag().map(CameraImage::Raw)),
+                Incoming::ReadError,
+            ),
+            Self::Compressed(r) => drain(
+                r,
+                tx,
+                |m: msgs::CompressedImage, _| wrap(m.into_bag().map(CameraImage::Compressed)),
+                Incoming::ReadError,
+            ),
+        }
+    }
+}
+
+/// Whether `topic` is an `image_transport` compressed one (`.../compressed`,
+/// `.../compressedDepth`), which carries `sensor_msgs/CompressedImage`.
+///
+/// ```
+/// use slamkit_ros2::vo_node::is_compressed;
+/// assert!(is_compressed("/camera/camera/color/image_raw/compressed"));
+/// assert!(is_compressed("/camera/camera/aligned_depth_to_color/image_raw/compressedDepth"));
+/// assert!(!is_compressed("/camera/camera/color/image_raw"));
+/// ```
+pub fn is_compressed(topic: &str) -> bool {
+    topic.ends_with("/compressed") || topic.ends_with("/compressedDepth")
 }
 
 /// What the pairing thread shares with the publishing one.
@@ -185,10 +253,9 @@ pub fn run_vo_node(
     let mut node = config.discovery.node(&config.node_name)?;
     let n = &mut node;
     let sensor = sensor_qos();
-    let image = ("sensor_msgs", "Image");
     let readers = Readers {
-        colour: subscribe(n, &config.rgb_topic, image, &sensor)?,
-        depth: subscribe(n, &config.depth_topic, image, &sensor)?,
+        colour: ImageReader::open(n, &config.rgb_topic)?,
+        depth: ImageReader::open(n, &config.depth_topic)?,
         info: subscribe(
             n,
             &config.camera_info_topic,
@@ -265,8 +332,9 @@ fn track(
     let source = frames.iter().enumerate().map(move |(index, pair)| {
         let _ = meta_tx.send((index, pair.stamp, pair.received));
         let timestamp = pair.stamp.as_secs_f64();
-        colour_image(&pair.colour)
-            .and_then(|c| depth_image(&pair.depth).and_then(|d| rgbd_frame(timestamp, c, d)))
+        let (colour, depth) = (pair.colour.colour(), pair.depth.depth());
+        colour
+            .and_then(|c| depth.and_then(|d| rgbd_frame(timestamp, c, d)))
             .map_err(|why| format!("{timestamp:.6} s: {why}"))
     });
     let run = visual::run(&mut session, source, RunOptions::default(), |u| {
@@ -369,12 +437,8 @@ fn read_loop(
     let mut poll = Poll::new().map_err(crate::dds::dds("poll"))?;
     let registry = poll.registry();
     let poll_error = crate::dds::dds("poll");
-    registry
-        .register(&mut readers.colour, Token(0), Interest::READABLE)
-        .map_err(&poll_error)?;
-    registry
-        .register(&mut readers.depth, Token(1), Interest::READABLE)
-        .map_err(&poll_error)?;
+    readers.colour.register(registry, Token(0))?;
+    readers.depth.register(registry, Token(1))?;
     registry
         .register(&mut readers.info, Token(2), Interest::READABLE)
         .map_err(&poll_error)?;
@@ -389,12 +453,11 @@ fn read_loop(
         let error = Incoming::ReadError;
         let info = |m, _: &_| Incoming::Info(Box::new(m));
         let tf = |m, _: &_| Incoming::TfStatic(m);
-        let colour = |m, _: &_| Incoming::Colour(Instant::now(), m);
-        let depth = |m, _: &_| Incoming::Depth(m);
+        let colour = |m| Incoming::Colour(Instant::now(), m);
         let open = drain(&readers.info, tx, info, error)
             && drain(&readers.tf_static, tx, tf, error)
-            && drain(&readers.depth, tx, depth, error)
-            && drain(&readers.colour, tx, colour, error);
+            && readers.depth.drain(tx, Incoming::Depth)
+            && readers.colour.drain(tx, colour);
         if !open {
             break;
         }
@@ -411,7 +474,7 @@ fn pair_loop(
     shared: &Shared,
     stop: &AtomicBool,
 ) {
-    let mut pairing = RgbdPairing::<(ImageMsg, Time, Instant), ImageMsg>::new();
+    let mut pairing = RgbdPairing::<(CameraImage, Time, Instant), CameraImage>::new();
     let mut camera: Option<msgs::CameraInfo> = None;
     let mut colour_size = None;
     let mut sent_camera = false;
@@ -443,14 +506,20 @@ fn pair_loop(
             Incoming::Colour(received, m) => {
                 last_message = Some(Instant::now());
                 stats(&mut |s| s.colour_received += 1);
-                let stamp = m.header.stamp;
-                match m.into_bag() {
+                match m {
                     Ok(m) => {
-                        colour_size.get_or_insert((m.width, m.height));
-                        if let Ok(mut f) = shared.optical_frame.lock() {
-                            f.get_or_insert_with(|| m.header.frame_id.clone());
+                        if colour_size.is_none() {
+                            colour_size = m.size().ok();
                         }
-                        let t = m.header.stamp.as_secs_f64();
+                        let header = m.header();
+                        if let Ok(mut f) = shared.optical_frame.lock() {
+                            f.get_or_insert_with(|| header.frame_id.clone());
+                        }
+                        let t = header.stamp.as_secs_f64();
+                        let stamp = Time {
+                            sec: header.stamp.sec as i32,
+                            nanosec: header.stamp.nsec,
+                        };
                         pairs = pairing.add_colour(t, (m, stamp, received));
                     }
                     Err(why) => stats(&mut |s| s.undecodable.add(format!("colour: {why}"))),
@@ -459,8 +528,8 @@ fn pair_loop(
             Incoming::Depth(m) => {
                 last_message = Some(Instant::now());
                 stats(&mut |s| s.depth_received += 1);
-                match m.into_bag() {
-                    Ok(m) => pairs = pairing.add_depth(m.header.stamp.as_secs_f64(), m),
+                match m {
+                    Ok(m) => pairs = pairing.add_depth(m.header().stamp.as_secs_f64(), m),
                     Err(why) => stats(&mut |s| s.undecodable.add(format!("depth: {why}"))),
                 }
             }
@@ -511,7 +580,7 @@ fn pair_loop(
 
 /// Queues pairs for the session, dropping what does not fit; false once the session is gone.
 fn queue(
-    pairs: Vec<((ImageMsg, Time, Instant), ImageMsg)>,
+    pairs: Vec<((CameraImage, Time, Instant), CameraImage)>,
     tx: &Sender<Pair>,
     stats: &impl Fn(&mut dyn FnMut(&mut VoNodeStats)),
 ) -> bool {

@@ -1,8 +1,9 @@
 //! `slamkit ros2 vo` live on loopback (issue 21): the 7-Scenes RedKitchen bag of
 //! `crates/cli/tests/vo_bags.rs` (60 frames, rgb8 colour, 16UC1 depth, one CameraInfo, written
 //! by PyPI `rosbags` through `scripts/make_ros2_bags.sh`) is played message by message from a
-//! plain RustDDS writer in this test into the node, with a RealSense-like `/tf_static`
-//! (`camera_link → <optical frame>`). Both sides discover each other by unicast on
+//! plain RustDDS writer in this test into the node (colour raw, depth as `image_transport`'s
+//! `compressedDepth` PNG), with a RealSense-like `/tf_static` (`camera_link → <optical
+//! frame>`). Both sides discover each other by unicast on
 //! `127.0.0.1` only (`ROS_LOCALHOST_ONLY`, [`Discovery`]; loopback carries no multicast), on a
 //! domain of their own, so nothing leaves the machine and concurrent runs do not meet.
 //!
@@ -30,6 +31,9 @@ use std::time::{Duration, Instant};
 
 const RGB: &str = "/camera/color/image_raw";
 const DEPTH: &str = "/camera/aligned_depth_to_color/image_raw";
+/// The depth images go out as `image_transport`'s `compressedDepth` plugin sends them (PNG,
+/// lossless), so the node's raw and compressed paths both run.
+const DEPTH_PNG: &str = "/camera/aligned_depth_to_color/image_raw/compressedDepth";
 const INFO: &str = "/camera/color/camera_info";
 
 /// The bag, or `None` (skipped) when it is absent and `SLAMKIT_DATA` is unset.
@@ -86,6 +90,27 @@ fn camera_info(m: CameraInfoMsg) -> msgs::CameraInfo {
             width: m.roi[3],
             do_rectify: m.roi_do_rectify,
         },
+    }
+}
+
+/// A 16UC1 depth image as the `compressedDepth` plugin writes it: a 12-byte header (format,
+/// two quantisation parameters unused for 16UC1), then a 16-bit grey PNG.
+fn compressed_depth(m: &msgs::Image) -> msgs::CompressedImage {
+    let mm: Vec<u16> = m
+        .data
+        .chunks_exact(2)
+        .map(|b| u16::from_le_bytes([b[0], b[1]]))
+        .collect();
+    let png = image::ImageBuffer::<image::Luma<u16>, _>::from_raw(m.width, m.height, mm).unwrap();
+    let mut data = vec![0u8; 12];
+    let mut after_header = std::io::Cursor::new(&mut data);
+    after_header.set_position(12);
+    png.write_to(&mut after_header, image::ImageFormat::Png)
+        .unwrap();
+    msgs::CompressedImage {
+        header: m.header.clone(),
+        format: "16UC1; compressedDepth png".into(),
+        data,
     }
 }
 
@@ -149,7 +174,7 @@ fn the_camera_node_on_loopback_gives_the_bag_runs_trajectory() {
     };
     let request = VoNodeRequest {
         rgb_topic: Some(RGB.into()),
-        depth_topic: Some(DEPTH.into()),
+        depth_topic: Some(DEPTH_PNG.into()),
         camera_info_topic: Some(INFO.into()),
         profile: Some("kinect-v1".into()),
         // every frame waits for the session: the test checks the trajectory, not the pace
@@ -183,7 +208,7 @@ fn the_camera_node_on_loopback_gives_the_bag_runs_trajectory() {
         };
         let (rgb_t, depth_t, info_t) = (
             writer(RGB, "sensor_msgs/Image"),
-            writer(DEPTH, "sensor_msgs/Image"),
+            writer(DEPTH_PNG, "sensor_msgs/CompressedImage"),
             writer(INFO, "sensor_msgs/CameraInfo"),
         );
         let tf_t = topic(
@@ -206,7 +231,7 @@ fn the_camera_node_on_loopback_gives_the_bag_runs_trajectory() {
             .create_datawriter_no_key_cdr::<msgs::Image>(&rgb_t, None)
             .unwrap();
         let depth_w = publisher
-            .create_datawriter_no_key_cdr::<msgs::Image>(&depth_t, None)
+            .create_datawriter_no_key_cdr::<msgs::CompressedImage>(&depth_t, None)
             .unwrap();
         let info_w = publisher
             .create_datawriter_no_key_cdr::<msgs::CameraInfo>(&info_t, None)
@@ -260,7 +285,7 @@ fn the_camera_node_on_loopback_gives_the_bag_runs_trajectory() {
                 info_w.write(info.clone(), None).unwrap();
                 rgb_w.write(m, None).unwrap();
             } else {
-                depth_w.write(m, None).unwrap();
+                depth_w.write(compressed_depth(&m), None).unwrap();
             }
             std::thread::sleep(Duration::from_millis(33));
         }
@@ -292,10 +317,14 @@ fn the_camera_node_on_loopback_gives_the_bag_runs_trajectory() {
             stats.mounting
         );
         assert_eq!(stats.frames_dropped, 0);
+        assert!(run.run.skipped.is_empty(), "{:?}", run.run.skipped);
+        assert_eq!(run.run.frames.len(), stats.frames_queued);
         assert!(stats.undecodable.count == 0, "{:?}", stats.undecodable);
         // DDS is best effort: at most a tenth of the frames lost on loopback
         assert!(stats.frames_queued >= 54, "{} frames", stats.frames_queued);
         assert_eq!(poses.len(), stats.poses_published);
+        assert_eq!(poses.len(), run.run.trajectory.poses.len());
+        assert!(poses.len() >= 54, "{} poses", poses.len());
         let stamps: Vec<f64> = run.run.frames.iter().map(|f| f.timestamp).collect();
         let expected = reference(&path, &stamps);
         assert_eq!(expected.poses.len(), poses.len());
