@@ -90,17 +90,47 @@ fn decode(path: &Path) -> Result<DynamicImage, IoError> {
     reader.decode().map_err(|e| image_error(path, e))
 }
 
+/// An image file's bytes (a ROS `CompressedImage`'s, say) decoded: PNG, or JPEG strictly (see
+/// the module documentation), told by their content.
+///
+/// ```
+/// let mut png = Vec::new();
+/// image::GrayImage::from_raw(2, 1, vec![10, 20])
+///     .unwrap()
+///     .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+///     .unwrap();
+/// let decoded = slamkit_io::image_io::decode_bytes(&png).unwrap();
+/// assert_eq!(decoded.into_luma8().into_raw(), [10, 20]);
+/// assert!(slamkit_io::image_io::decode_bytes(b"GIF89a").is_err());
+/// ```
+///
+/// # Errors
+/// Bytes that are neither a PNG nor a JPEG, or that do not decode.
+pub fn decode_bytes(bytes: &[u8]) -> Result<DynamicImage, String> {
+    match image::guess_format(bytes) {
+        Ok(ImageFormat::Jpeg) => jpeg_strict(bytes),
+        Ok(ImageFormat::Png) => image::load_from_memory_with_format(bytes, ImageFormat::Png)
+            .map_err(|e| format!("PNG: {e}")),
+        Ok(other) => Err(format!("{other:?} images are not read (PNG or JPEG)")),
+        Err(_) => Err("neither a PNG nor a JPEG".into()),
+    }
+}
+
 /// A JPEG decoded as 8-bit RGB, failing on a truncated or corrupt scan.
 fn decode_jpeg_strict(path: &Path, bytes: &[u8]) -> Result<DynamicImage, IoError> {
+    jpeg_strict(bytes).map_err(|message| IoError::Image {
+        path: path.to_path_buf(),
+        message,
+    })
+}
+
+fn jpeg_strict(bytes: &[u8]) -> Result<DynamicImage, String> {
     use zune_core::{bytestream::ZCursor, colorspace::ColorSpace, options::DecoderOptions};
     let options = DecoderOptions::default()
         .set_strict_mode(true)
         .jpeg_set_out_colorspace(ColorSpace::RGB);
     let mut decoder = zune_jpeg::JpegDecoder::new_with_options(ZCursor::new(bytes), options);
-    let failed = |message: String| IoError::Image {
-        path: path.to_path_buf(),
-        message: format!("JPEG: {}", message.trim_matches('"')),
-    };
+    let failed = |message: String| format!("JPEG: {}", message.trim_matches('"'));
     let pixels = decoder.decode().map_err(|e| failed(e.to_string()))?;
     let (w, h) = decoder
         .dimensions()

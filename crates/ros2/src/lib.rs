@@ -8,21 +8,33 @@
 //! * [`lidar_run`]: its settings and session from a request, its output files and report.
 //! * [`pairing`]: live scans tied to odometry by the rule of the bag reader, in publication
 //!   order.
+//! * [`vo_node`]: `slamkit ros2 vo` (an RGB-D camera such as a RealSense).
+//! * [`vo_run`]: its settings and session from a request, its output files and report.
+//! * [`rgbd_pairing`]: live colour and depth images paired by stamp, as the bag reader pairs
+//!   them.
+//! * [`dds`]: what both nodes do with DDS (discovery, QoS, readers, the pose writers).
 //! * [`params`]: the ROS-style parameter file (`--params FILE.yaml`).
 //! * [`msgs`], [`grid_msg`]: the messages, and the occupancy grid as `nav_msgs/OccupancyGrid`.
 //!
 //! Frames follow REP 105 (`map`, `odom`, `base_link`); discovery is DDS's default (multicast
-//! on the domain's ports), as every ROS 2 node's.
+//! on the domain's ports), as every ROS 2 node's, or this machine only over `127.0.0.1` when
+//! asked (`ROS_LOCALHOST_ONLY=1`, [`dds::Discovery`]).
 
+pub mod dds;
 pub mod grid_msg;
 pub mod lidar_node;
 pub mod lidar_run;
 pub mod msgs;
 pub mod pairing;
 pub mod params;
+pub mod rgbd_pairing;
+pub mod vo_node;
+pub mod vo_run;
 
 pub use lidar_node::{run_lidar_node, LidarNodeConfig, LidarNodeRun, NodeMode, NodeStats};
 pub use lidar_run::{LidarNodeRequest, LidarNodeSetup};
+pub use vo_node::{run_vo_node, VoNodeConfig, VoNodeRun, VoNodeStats};
+pub use vo_run::{VoNodeRequest, VoNodeSetup};
 
 /// Why the node cannot run.
 #[derive(Debug, thiserror::Error)]

@@ -17,16 +17,17 @@
 //! (`/slamkit/save_map`) names a file stem: the map is saved there as `.skmap`, `.pgm` and
 //! `.yaml` while the node runs.
 
+use crate::dds::{
+    advertise, dds, drain, latched_qos, published_ns, reliable_qos, sensor_qos, subscribe,
+    Discovery, PoseTopics, PoseWriters, Refusals,
+};
 use crate::grid_msg::occupancy_grid_msg;
-use crate::msgs::{self, Header, PoseWithCovariance, PoseWithCovarianceStamped, Time};
+use crate::msgs::{self, Time};
 use crate::Ros2Error;
 use crossbeam_channel::{unbounded, Receiver, RecvTimeoutError, Sender};
 use ros2_client::dds::rustdds::mio1::{Events, Interest, Poll, Token};
-use ros2_client::qos::{Durability, History, WhenFull};
-use ros2_client::{
-    Context, ContextOptions, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher,
-    QosProfile, Subscription,
-};
+use ros2_client::qos::History;
+use ros2_client::{Node, Publisher, Subscription};
 use slamkit_core::pose::pose2_to_pose3;
 use slamkit_core::{LaserScan, Pose2, StageTimings};
 use slamkit_io::bag::scans::{
@@ -39,7 +40,7 @@ use slamkit_slam::{LidarSlam, Session};
 use std::collections::VecDeque;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::{Duration, Instant, SystemTime};
+use std::time::{Duration, Instant};
 
 /// The stage of [`NodeStats::latency`]: a scan from its reader to its published pose.
 pub const LATENCY_STAGE: &str = "scan_receive_to_publish";
@@ -57,8 +58,8 @@ pub enum NodeMode {
 /// Settings of the lidar node; the defaults are ROS 2's usual names.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LidarNodeConfig {
-    /// DDS domain (`ROS_DOMAIN_ID`).
-    pub domain_id: u16,
+    /// DDS domain and discovery.
+    pub discovery: Discovery,
     /// The node's name.
     pub node_name: String,
     /// `sensor_msgs/LaserScan` topic.
@@ -98,7 +99,7 @@ pub struct LidarNodeConfig {
 impl Default for LidarNodeConfig {
     fn default() -> Self {
         Self {
-            domain_id: 0,
+            discovery: Discovery::default(),
             node_name: "slamkit".into(),
             scan_topic: "/scan".into(),
             odom_topic: Some("/odom".into()),
@@ -129,10 +130,8 @@ pub struct NodeStats {
     pub odometry_received: usize,
     /// Static transform messages received.
     pub tf_static_received: usize,
-    /// Messages that did not convert (each with why, the first few kept).
-    pub undecodable: usize,
-    /// Why the first undecodable messages were refused.
-    pub undecodable_examples: Vec<String>,
+    /// Messages that did not convert (the first few with why).
+    pub undecodable: Refusals,
     /// Scans pushed into the session.
     pub scans_processed: usize,
     /// Maps published.
@@ -185,128 +184,43 @@ struct Readers {
 
 /// The node's DDS writers.
 struct Writers {
-    tf: Publisher<msgs::TfMessage>,
-    pose: Publisher<PoseWithCovarianceStamped>,
+    pose: PoseWriters,
     map: Publisher<msgs::OccupancyGrid>,
     map_metadata: Publisher<msgs::MapMetaData>,
 }
 
-/// ROS 2's sensor-data QoS (best effort, volatile), with a deeper history than rclcpp's 5:
-/// the depth does not take part in matching, and the reader thread drains it anyway.
-fn sensor_qos() -> QosProfile {
-    QosProfile::subscription_default().history(History::KeepLast { depth: 100 })
-}
-
-/// Reliable and transient local: a late subscriber (RViz, Nav2) still gets the last map.
-fn latched_qos() -> QosProfile {
-    QosProfile::publisher_default()
-        .reliability_reliable(WhenFull::DEFAULT)
-        .durability(Durability::TransientLocal)
-        .history(History::KeepLast { depth: 1 })
-}
-
-fn reliable_qos(depth: usize) -> QosProfile {
-    QosProfile::publisher_default()
-        .reliability_reliable(WhenFull::DEFAULT)
-        .history(History::KeepLast { depth })
-}
-
-fn dds<E: std::fmt::Debug>(what: &str) -> impl Fn(E) -> Ros2Error + '_ {
-    move |e| Ros2Error::Dds(format!("{what}: {e:?}"))
-}
-
-fn topic(
-    node: &mut Node,
-    name: &str,
-    package: &str,
-    ty: &str,
-    qos: &QosProfile,
-) -> Result<ros2_client::dds::rustdds::Topic, Ros2Error> {
-    let parsed = Name::parse(name).map_err(|e| Ros2Error::Name(format!("{name}: {e:?}")))?;
-    node.create_topic(&parsed, MessageTypeName::new(package, ty), qos)
-        .map_err(dds(name))
-}
-
 fn open(config: &LidarNodeConfig) -> Result<(Node, Readers, Writers), Ros2Error> {
-    let context = Context::with_options(ContextOptions::new().domain_id(config.domain_id))
-        .map_err(dds("starting DDS"))?;
-    let name = NodeName::new("/", &config.node_name)
-        .map_err(|e| Ros2Error::Name(format!("{}: {e:?}", config.node_name)))?;
-    let mut node = context
-        .new_node(name, NodeOptions::new().enable_rosout(false))
-        .map_err(dds("creating the node"))?;
+    let mut node = config.discovery.node(&config.node_name)?;
+    let n = &mut node;
     let sensor = sensor_qos();
-    let t = topic(
-        &mut node,
-        &config.scan_topic,
-        "sensor_msgs",
-        "LaserScan",
-        &sensor,
-    )?;
-    let scan = node.create_subscription(&t, None).map_err(dds("scan"))?;
+    let scan = subscribe(n, &config.scan_topic, ("sensor_msgs", "LaserScan"), &sensor)?;
     let odom = match &config.odom_topic {
-        Some(name) => {
-            let t = topic(&mut node, name, "nav_msgs", "Odometry", &sensor)?;
-            Some(node.create_subscription(&t, None).map_err(dds("odom"))?)
-        }
+        Some(name) => Some(subscribe(n, name, ("nav_msgs", "Odometry"), &sensor)?),
         None => None,
     };
     let static_qos = latched_qos().history(History::KeepLast { depth: 100 });
-    let t = topic(
-        &mut node,
+    let tf_static = subscribe(
+        n,
         &config.tf_static_topic,
-        "tf2_msgs",
-        "TFMessage",
+        ("tf2_msgs", "TFMessage"),
         &static_qos,
     )?;
-    let tf_static = node
-        .create_subscription(&t, None)
-        .map_err(dds("tf_static"))?;
-    let t = topic(
-        &mut node,
+    let save = subscribe(
+        n,
         &config.save_map_topic,
-        "std_msgs",
-        "String",
+        ("std_msgs", "String"),
         &reliable_qos(10),
     )?;
-    let save = node
-        .create_subscription(&t, None)
-        .map_err(dds("save_map"))?;
-    let t = topic(
-        &mut node,
-        &config.tf_topic,
-        "tf2_msgs",
-        "TFMessage",
-        &reliable_qos(100),
-    )?;
-    let tf = node.create_publisher(&t, None).map_err(dds("tf"))?;
-    let qos = reliable_qos(10);
-    let t = topic(
-        &mut node,
-        &config.pose_topic,
-        "geometry_msgs",
-        "PoseWithCovarianceStamped",
-        &qos,
-    )?;
-    let pose = node.create_publisher(&t, None).map_err(dds("pose"))?;
-    let t = topic(
-        &mut node,
-        &config.map_topic,
-        "nav_msgs",
-        "OccupancyGrid",
-        &latched_qos(),
-    )?;
-    let map = node.create_publisher(&t, None).map_err(dds("map"))?;
-    let t = topic(
-        &mut node,
-        &config.map_metadata_topic,
-        "nav_msgs",
-        "MapMetaData",
-        &latched_qos(),
-    )?;
-    let map_metadata = node
-        .create_publisher(&t, None)
-        .map_err(dds("map_metadata"))?;
+    let topics = PoseTopics {
+        tf: &config.tf_topic,
+        pose: &config.pose_topic,
+        path: None,
+    };
+    let pose = PoseWriters::open(n, &topics)?;
+    let grid = ("nav_msgs", "OccupancyGrid");
+    let map = advertise(n, &config.map_topic, grid, &latched_qos())?;
+    let metadata = ("nav_msgs", "MapMetaData");
+    let map_metadata = advertise(n, &config.map_metadata_topic, metadata, &latched_qos())?;
     let readers = Readers {
         scan,
         odom,
@@ -314,42 +228,11 @@ fn open(config: &LidarNodeConfig) -> Result<(Node, Readers, Writers), Ros2Error>
         save,
     };
     let writers = Writers {
-        tf,
         pose,
         map,
         map_metadata,
     };
     Ok((node, readers, writers))
-}
-
-/// DDS source time of a sample \[ns\], else now (a writer that stamps nothing).
-fn published_ns(info: &ros2_client::MessageInfo) -> i64 {
-    info.source_timestamp().map_or_else(
-        || {
-            SystemTime::now()
-                .duration_since(SystemTime::UNIX_EPOCH)
-                .map_or(0, |d| d.as_nanos() as i64)
-        },
-        |t| t.to_nanos(),
-    )
-}
-
-/// Takes every sample a reader holds into `tx`.
-fn drain<M: 'static + serde::de::DeserializeOwned>(
-    reader: &Subscription<M>,
-    tx: &Sender<Incoming>,
-    wrap: impl Fn(M, &ros2_client::MessageInfo) -> Incoming,
-) {
-    loop {
-        let incoming = match reader.take() {
-            Ok(Some((msg, info))) => wrap(msg, &info),
-            Ok(None) => return,
-            Err(e) => Incoming::ReadError(format!("{e:?}")),
-        };
-        if tx.send(incoming).is_err() {
-            return;
-        }
-    }
 }
 
 /// The reader thread: waits on the readers, forwards each sample, ends when `done` is set.
@@ -379,16 +262,16 @@ fn read_loop(
         poll.poll(&mut events, Some(Duration::from_millis(50)))
             .map_err(dds("poll"))?;
         // Edge-triggered: every reader is drained whatever woke the poll.
-        if let Some(odom) = &readers.odom {
-            drain(odom, &tx, |m, i| {
-                Incoming::Odom(published_ns(i), Box::new(m))
-            });
+        if let Some(odom_reader) = &readers.odom {
+            let odom = |m, i: &_| Incoming::Odom(published_ns(i), Box::new(m));
+            drain(odom_reader, &tx, odom, Incoming::ReadError);
         }
-        drain(&readers.scan, &tx, |m, i| {
-            Incoming::Scan(published_ns(i), Instant::now(), m)
-        });
-        drain(&readers.tf_static, &tx, |m, _| Incoming::TfStatic(m));
-        drain(&readers.save, &tx, |m, _| Incoming::SaveMap(m));
+        let scan = |m, i: &_| Incoming::Scan(published_ns(i), Instant::now(), m);
+        drain(&readers.scan, &tx, scan, Incoming::ReadError);
+        let tf = |m, _: &_| Incoming::TfStatic(m);
+        drain(&readers.tf_static, &tx, tf, Incoming::ReadError);
+        let save = |m, _: &_| Incoming::SaveMap(m);
+        drain(&readers.save, &tx, save, Incoming::ReadError);
     }
     Ok(())
 }
@@ -557,10 +440,7 @@ impl<'a> Core<'a> {
     }
 
     fn refuse(&mut self, why: String) {
-        self.stats.undecodable += 1;
-        if self.stats.undecodable_examples.len() < 5 {
-            self.stats.undecodable_examples.push(why);
-        }
+        self.stats.undecodable.add(why);
     }
 
     fn take(&mut self, msg: Incoming) {
@@ -634,40 +514,28 @@ impl<'a> Core<'a> {
         }
     }
 
-    fn publish_pose(&self, map_from_base: &slamkit_core::Pose3, odom: Option<&Pose2>, stamp: Time) {
-        let header = |frame: &str| Header {
-            stamp,
-            frame_id: frame.to_string(),
-        };
+    fn publish_pose(
+        &mut self,
+        map_from_base: &slamkit_core::Pose3,
+        odom: Option<&Pose2>,
+        stamp: Time,
+    ) {
         let (child, map_from_child) = match odom {
             Some(odom_from_base) => (
-                self.config.odom_frame.clone(),
+                self.config.odom_frame.as_str(),
                 map_from_base * pose2_to_pose3(odom_from_base).inverse(),
             ),
             None => (
                 self.base_frame
-                    .clone()
-                    .unwrap_or(self.config.base_frame.clone()),
+                    .as_deref()
+                    .unwrap_or(&self.config.base_frame),
                 *map_from_base,
             ),
         };
-        let tf = msgs::TfMessage {
-            transforms: vec![msgs::TransformStamped {
-                header: header(&self.config.map_frame),
-                child_frame_id: child,
-                transform: msgs::Pose::from_isometry(&map_from_child),
-            }],
-        };
-        // Best effort: a full send window must not stop the session.
-        let _ = self.writers.tf.publish(tf);
-        let pose = PoseWithCovarianceStamped {
-            header: header(&self.config.map_frame),
-            pose: PoseWithCovariance {
-                pose: msgs::Pose::from_isometry(map_from_base),
-                ..PoseWithCovariance::default()
-            },
-        };
-        let _ = self.writers.pose.publish(pose);
+        let child = child.to_string();
+        let map = self.config.map_frame.clone();
+        let tf = (map.as_str(), child.as_str(), &map_from_child);
+        self.writers.pose.publish(tf, &map, map_from_base, stamp);
     }
 
     /// Sends the current poses to the map thread every `map_update_interval_s`.

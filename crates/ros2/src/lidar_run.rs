@@ -4,6 +4,7 @@
 //! parameter file, `ROS_DOMAIN_ID`, a saved map), and once the node stops, its output files
 //! and `report.json` ([`LidarNodeRun::write_outputs`], [`LidarNodeRun::report`]).
 
+use crate::dds::Discovery;
 use crate::lidar_node::{LidarNodeConfig, LidarNodeRun, NodeMode};
 use crate::params::RosParams;
 use crate::Ros2Error;
@@ -28,9 +29,9 @@ pub struct LidarNodeRequest {
     pub config: Option<PathBuf>,
     /// Stop once no message came for this long after the first scan \[s\].
     pub idle_exit_s: Option<f64>,
-    /// The value of `ROS_DOMAIN_ID` in the environment, when set (the caller reads it: a
-    /// library does not read the process's environment).
-    pub domain_id: Option<String>,
+    /// DDS domain and discovery (the caller reads them from the environment,
+    /// [`Discovery::from_env`]: a library does not read the process's environment).
+    pub discovery: Discovery,
 }
 
 /// The node's settings and its session, ready for [`crate::run_lidar_node`].
@@ -43,38 +44,21 @@ pub struct LidarNodeSetup {
     pub ignored_params: Vec<String>,
 }
 
-/// Reads a DDS domain as `ROS_DOMAIN_ID` holds it.
-///
-/// ```
-/// use slamkit_ros2::lidar_run::parse_domain_id;
-/// assert_eq!(parse_domain_id("42").unwrap(), 42);
-/// assert!(parse_domain_id("lab").is_err());
-/// ```
-///
-/// # Errors
-/// [`Ros2Error::Config`] for text that is not a domain number.
-pub fn parse_domain_id(text: &str) -> Result<u16, Ros2Error> {
-    text.parse()
-        .map_err(|_| Ros2Error::Config(format!("ROS_DOMAIN_ID={text} is not a domain number")))
-}
-
 impl LidarNodeRequest {
     /// The node's settings (defaults, then the parameter file, then this request) and the
     /// session: localisation when a map to localise in is named (`localize`, or `mode:
     /// localization` with `map_file_name`), else a continued map, else a new one.
     ///
     /// # Errors
-    /// [`Ros2Error::Config`] for a bad `ROS_DOMAIN_ID`, parameter file or setting, or
+    /// [`Ros2Error::Config`] for a bad parameter file or setting, or
     /// localisation without a map; [`Ros2Error::Slam`] for a profile, settings file or saved
     /// map that does not load.
     pub fn setup(&self) -> Result<LidarNodeSetup, Ros2Error> {
         let mut node = LidarNodeConfig {
             idle_exit_s: self.idle_exit_s,
+            discovery: self.discovery,
             ..LidarNodeConfig::default()
         };
-        if let Some(id) = &self.domain_id {
-            node.domain_id = parse_domain_id(id)?;
-        }
         let params = match &self.params {
             Some(path) => RosParams::load(path, &node.node_name)?,
             None => RosParams::default(),
@@ -219,11 +203,14 @@ mod tests {
         let request = LidarNodeRequest {
             params: Some(params),
             idle_exit_s: Some(2.0),
-            domain_id: Some("7".into()),
+            discovery: Discovery {
+                domain_id: 7,
+                localhost_only: true,
+            },
             ..LidarNodeRequest::default()
         };
         let setup = request.setup().unwrap();
-        assert_eq!(setup.node.domain_id, 7);
+        assert_eq!(setup.node.discovery, request.discovery);
         assert_eq!(setup.node.idle_exit_s, Some(2.0));
         assert_eq!(setup.node.mode, NodeMode::Mapping);
         assert_eq!(
@@ -235,12 +222,6 @@ mod tests {
 
     #[test]
     fn bad_requests_give_clear_errors() {
-        let bad_domain = LidarNodeRequest {
-            domain_id: Some("lab".into()),
-            ..LidarNodeRequest::default()
-        };
-        let e = bad_domain.setup().err().unwrap().to_string();
-        assert!(e.contains("ROS_DOMAIN_ID=lab"), "{e}");
         let dir = tempfile::tempdir().unwrap();
         let params = dir.path().join("p.yaml");
         std::fs::write(

@@ -378,6 +378,152 @@ pub struct OccupancyGrid {
     pub data: Vec<i8>,
 }
 
+/// `sensor_msgs/Image`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Image {
+    /// Time of the exposure, and the camera's optical frame.
+    pub header: Header,
+    /// Rows.
+    pub height: u32,
+    /// Columns.
+    pub width: u32,
+    /// Pixel encoding (`rgb8`, `16UC1`, ...).
+    pub encoding: String,
+    /// Whether multi-byte pixels are big endian.
+    pub is_bigendian: u8,
+    /// Bytes per row.
+    pub step: u32,
+    /// The pixels.
+    pub data: Vec<u8>,
+}
+
+impl Image {
+    /// As the bag reader's message (for [`slamkit_io::bag::rgbd`]'s conversions).
+    ///
+    /// # Errors
+    /// A stamp before 1970.
+    pub fn into_bag(self) -> Result<bag::ImageMsg, String> {
+        Ok(bag::ImageMsg {
+            header: self.header.to_bag()?,
+            height: self.height,
+            width: self.width,
+            encoding: self.encoding,
+            is_bigendian: self.is_bigendian,
+            step: self.step,
+            data: self.data,
+        })
+    }
+}
+
+/// `sensor_msgs/CompressedImage`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct CompressedImage {
+    /// Time of the exposure, and the camera's optical frame.
+    pub header: Header,
+    /// `jpeg` or `png` (image_transport writes `rgb8; jpeg compressed bgr8`).
+    pub format: String,
+    /// The compressed file's bytes.
+    pub data: Vec<u8>,
+}
+
+impl CompressedImage {
+    /// As the bag reader's message.
+    ///
+    /// # Errors
+    /// A stamp before 1970.
+    pub fn into_bag(self) -> Result<bag::CompressedImageMsg, String> {
+        Ok(bag::CompressedImageMsg {
+            header: self.header.to_bag()?,
+            format: self.format,
+            data: self.data,
+        })
+    }
+}
+
+/// `sensor_msgs/RegionOfInterest`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct RegionOfInterest {
+    /// Left column.
+    pub x_offset: u32,
+    /// Top row.
+    pub y_offset: u32,
+    /// Rows.
+    pub height: u32,
+    /// Columns.
+    pub width: u32,
+    /// Whether the region is to be rectified.
+    pub do_rectify: bool,
+}
+
+/// `sensor_msgs/CameraInfo`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct CameraInfo {
+    /// Time, and the camera's optical frame.
+    pub header: Header,
+    /// Image rows.
+    pub height: u32,
+    /// Image columns.
+    pub width: u32,
+    /// `plumb_bob`, `rational_polynomial`, ...
+    pub distortion_model: String,
+    /// Distortion coefficients.
+    pub d: Vec<f64>,
+    /// Intrinsic matrix (row-major 3×3).
+    pub k: [f64; 9],
+    /// Rectification rotation (row-major 3×3).
+    pub r: [f64; 9],
+    /// Projection matrix (row-major 3×4).
+    pub p: [f64; 12],
+    /// Horizontal binning.
+    pub binning_x: u32,
+    /// Vertical binning.
+    pub binning_y: u32,
+    /// Region of interest.
+    pub roi: RegionOfInterest,
+}
+
+impl CameraInfo {
+    /// As the bag reader's message (for [`slamkit_io::bag::rgbd::camera_of`]).
+    ///
+    /// # Errors
+    /// A stamp before 1970.
+    pub fn to_bag(&self) -> Result<bag::CameraInfoMsg, String> {
+        let roi = self.roi;
+        Ok(bag::CameraInfoMsg {
+            header: self.header.to_bag()?,
+            height: self.height,
+            width: self.width,
+            distortion_model: self.distortion_model.clone(),
+            d: self.d.clone(),
+            k: self.k,
+            r: self.r,
+            p: self.p,
+            binning_x: self.binning_x,
+            binning_y: self.binning_y,
+            roi: [roi.x_offset, roi.y_offset, roi.height, roi.width],
+            roi_do_rectify: roi.do_rectify,
+        })
+    }
+}
+
+/// `geometry_msgs/PoseStamped`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct PoseStamped {
+    /// Time, and the frame of the pose.
+    pub header: Header,
+    /// The pose.
+    pub pose: Pose,
+}
+
+/// `nav_msgs/Path`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Path {
+    /// Time, and the frame of the poses.
+    pub header: Header,
+    /// The poses, oldest first.
+    pub poses: Vec<PoseStamped>,
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -451,6 +597,51 @@ mod tests {
         };
         let decoded = bag::TfMessageMsg::decode_cdr(&cdr(&tf)).unwrap();
         assert_eq!(decoded, tf.to_bag().unwrap());
+    }
+
+    /// The camera messages likewise (and `CompressedImage`).
+    #[test]
+    fn camera_layouts_decode_with_the_bag_readers_cdr_decoder() {
+        use slamkit_io::bag::messages::RosMessage;
+        let header = Header {
+            stamp: Time { sec: 7, nanosec: 9 },
+            frame_id: "camera_color_optical_frame".into(),
+        };
+        let image = Image {
+            header: header.clone(),
+            height: 1,
+            width: 2,
+            encoding: "16UC1".into(),
+            is_bigendian: 0,
+            step: 4,
+            data: vec![1, 2, 3, 4],
+        };
+        let decoded = bag::ImageMsg::decode_cdr(&cdr(&image)).unwrap();
+        assert_eq!(decoded, image.into_bag().unwrap());
+        let info = CameraInfo {
+            header: header.clone(),
+            height: 480,
+            width: 640,
+            distortion_model: "plumb_bob".into(),
+            d: vec![0.1, -0.2, 0.0, 0.0, 0.05],
+            k: [585.0, 0.0, 320.0, 0.0, 585.0, 240.0, 0.0, 0.0, 1.0],
+            roi: RegionOfInterest {
+                x_offset: 1,
+                width: 3,
+                do_rectify: true,
+                ..RegionOfInterest::default()
+            },
+            ..CameraInfo::default()
+        };
+        let decoded = bag::CameraInfoMsg::decode_cdr(&cdr(&info)).unwrap();
+        assert_eq!(decoded, info.to_bag().unwrap());
+        let jpeg = CompressedImage {
+            header,
+            format: "rgb8; jpeg compressed bgr8".into(),
+            data: vec![0xff, 0xd8, 0xff],
+        };
+        let decoded = bag::CompressedImageMsg::decode_cdr(&cdr(&jpeg)).unwrap();
+        assert_eq!(decoded, jpeg.into_bag().unwrap());
     }
 
     #[test]

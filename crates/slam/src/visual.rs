@@ -51,6 +51,7 @@ pub use point_map::PointMapping;
 pub use prepare::{FramePreparer, PreparedObservation};
 
 use cpu_time::ThreadTime;
+use slamkit_core::camera::PinholeCamera;
 use slamkit_core::{Observation, Pose3, StageTimings, Trajectory};
 use slamkit_io::{Dataset, DatasetFormat};
 use slamkit_vo::covisibility::PlaceFeatures;
@@ -161,6 +162,15 @@ pub struct VisualUpdate {
     pub index: usize,
     /// Visual odometry's own account of the frame (inliers, or why it failed).
     pub frame: FrameStatus,
+}
+
+impl VisualUpdate {
+    /// The frame's pose when odometry tracked it (or started on it); `None` for a failed
+    /// frame, whose pose would only be the one held over it (a trajectory leaves it out).
+    pub fn tracked_pose(&self) -> Option<Pose3> {
+        let tracked = !matches!(self.frame, FrameStatus::Failed(_));
+        self.update.pose.filter(|_| tracked)
+    }
 }
 
 /// What a finished session leaves.
@@ -629,13 +639,19 @@ pub fn rig_of(dataset: &Dataset) -> Rig {
             color: s.color_camera.intrinsics,
             depth: s.depth_camera.intrinsics,
         },
-        Dataset::RgbdBag(b) => Rig::Rgbd {
-            color: b.camera.intrinsics,
-            depth: b.camera.intrinsics,
-        },
+        Dataset::RgbdBag(b) => rgbd_rig(&b.camera),
         Dataset::Stereo(s) => Rig::Stereo {
             left: s.left_camera.intrinsics,
             baseline_m: s.baseline_m(),
         },
+    }
+}
+
+/// The rig of an RGB-D camera whose depth is registered to its colour images (a bag's, or a
+/// live camera's from its `CameraInfo`): one camera for both.
+pub fn rgbd_rig(camera: &PinholeCamera) -> Rig {
+    Rig::Rgbd {
+        color: camera.intrinsics,
+        depth: camera.intrinsics,
     }
 }

@@ -1,9 +1,12 @@
-//! `slamkit ros2 lidar`: the ROS 2 node ([`slamkit_ros2`]) with its arguments; on stop
+//! `slamkit ros2 lidar|vo`: the ROS 2 nodes ([`slamkit_ros2`]) with their arguments; on stop
 //! (Ctrl-C, SIGTERM, or `--idle-exit`) the map, trajectory and report go to `--out`.
 
+use crate::commands::vo::{CameraTopicArgs, Frontend};
 use crate::output::finish;
 use slamkit_io::output_folder::OutputFolder;
-use slamkit_ros2::{run_lidar_node, LidarNodeRequest, LidarNodeRun};
+use slamkit_ros2::dds::Discovery;
+use slamkit_ros2::{run_lidar_node, run_vo_node, LidarNodeRequest, LidarNodeRun};
+use slamkit_ros2::{VoNodeRequest, VoNodeRun};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -19,6 +22,51 @@ enum Ros2Node {
     /// 2D lidar SLAM (or localisation in a saved map) on /scan and /odom; publishes /map,
     /// map→odom on /tf and /pose.
     Lidar(LidarNodeArgs),
+    /// Visual odometry / SLAM (or localisation in a saved map) on an RGB-D camera's colour,
+    /// aligned depth and camera_info (a RealSense driver's topics by default); publishes
+    /// map→camera_link on /tf, /pose and /path.
+    Vo(VoNodeArgs),
+}
+
+/// Arguments of `slamkit ros2 vo`.
+#[derive(Debug, clap::Args)]
+struct VoNodeArgs {
+    /// The camera's topics (default: the RealSense ROS 2 driver's, with aligned depth:
+    /// /camera/camera/color/image_raw, /camera/camera/aligned_depth_to_color/image_raw,
+    /// /camera/camera/color/camera_info).
+    #[command(flatten)]
+    topics: CameraTopicArgs,
+    /// The frame published as the child of `map` on /tf (the camera's mounting from it to
+    /// the images' optical frame comes from /tf_static).
+    #[arg(long, default_value = "camera_link")]
+    base_frame: String,
+    /// Feature front end.
+    #[arg(long, value_enum, default_value = "klt")]
+    frontend: Frontend,
+    /// Named profile of the camera (or a profile file `X.toml`): its `[vo]` settings.
+    #[arg(long)]
+    profile: Option<String>,
+    /// TOML file laid over the profile's settings (as for `slamkit vo`).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Visual SLAM: keyframes, place recognition and loop closure.
+    #[arg(long)]
+    slam: bool,
+    /// Write the map to this `.skmap` when the node stops.
+    #[arg(long)]
+    save_map: Option<PathBuf>,
+    /// Localise in this saved map (a `.skmap` of a `--slam` run) instead of building one.
+    #[arg(long, conflicts_with_all = ["save_map", "slam"])]
+    localize: Option<PathBuf>,
+    /// Frames waiting for the session at most; newer ones are dropped and counted.
+    #[arg(long)]
+    frame_queue: Option<usize>,
+    /// Stop once no image came for this many seconds.
+    #[arg(long)]
+    idle_exit: Option<f64>,
+    /// Where the trajectory, point cloud and report go when the node stops.
+    #[arg(long, default_value = "out/ros2-vo")]
+    out: PathBuf,
 }
 
 /// Arguments of `slamkit ros2 lidar`.
@@ -53,7 +101,54 @@ struct LidarNodeArgs {
 pub fn run(args: &Ros2Args) -> anyhow::Result<()> {
     match &args.node {
         Ros2Node::Lidar(a) => lidar(a),
+        Ros2Node::Vo(a) => vo(a),
     }
+}
+
+/// The discovery the environment asks for (`ROS_DOMAIN_ID`, `ROS_LOCALHOST_ONLY`,
+/// `ROS_AUTOMATIC_DISCOVERY_RANGE`).
+fn discovery() -> anyhow::Result<Discovery> {
+    let var = |name| std::env::var(name).ok();
+    Ok(Discovery::from_env(
+        var("ROS_DOMAIN_ID").as_deref(),
+        var("ROS_LOCALHOST_ONLY").as_deref(),
+        var("ROS_AUTOMATIC_DISCOVERY_RANGE").as_deref(),
+    )?)
+}
+
+fn vo(args: &VoNodeArgs) -> anyhow::Result<()> {
+    let started = Instant::now();
+    let t = &args.topics;
+    let request = VoNodeRequest {
+        rgb_topic: t.rgb_topic.clone(),
+        depth_topic: t.depth_topic.clone(),
+        camera_info_topic: t.camera_info_topic.clone(),
+        base_frame: Some(args.base_frame.clone()),
+        frontend: crate::commands::vo::frontend_kind(args.frontend),
+        profile: args.profile.clone(),
+        config: args.config.clone(),
+        slam: args.slam,
+        localize: args.localize.clone(),
+        save_map: args.save_map.clone(),
+        frame_queue: args.frame_queue,
+        idle_exit_s: args.idle_exit,
+        discovery: discovery()?,
+    };
+    let setup = request.setup()?;
+    let folder = OutputFolder::create(&args.out, VoNodeRun::OUTPUTS)?;
+    let stop = crate::output::stop_flag()?;
+    let out = args.out.display();
+    println!(
+        "slamkit ros2 vo: {}; Ctrl-C stops and saves to {out}",
+        setup.describe()
+    );
+    let run = run_vo_node(&setup.node, |camera| setup.session(camera), &stop)?;
+    let mut report = run.finish(&setup, folder.path())?;
+    report["wall_seconds"] = serde_json::json!(started.elapsed().as_secs_f64());
+    let summary = slamkit_slam::visual::run_files::summary(&report);
+    finish(folder, &report)?;
+    println!("{summary}\noutputs in {out}");
+    Ok(())
 }
 
 fn lidar(args: &LidarNodeArgs) -> anyhow::Result<()> {
@@ -65,7 +160,7 @@ fn lidar(args: &LidarNodeArgs) -> anyhow::Result<()> {
         profile: args.profile.clone(),
         config: args.config.clone(),
         idle_exit_s: args.idle_exit,
-        domain_id: std::env::var("ROS_DOMAIN_ID").ok(),
+        discovery: discovery()?,
     };
     let setup = request.setup()?;
     if !setup.ignored_params.is_empty() {

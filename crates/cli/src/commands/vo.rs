@@ -254,13 +254,18 @@ fn detect_format(dir: &Path) -> anyhow::Result<IoFormat> {
 
 /// The session's settings ([`visual::session_settings`]) for the chosen front end.
 fn load_config(args: &VoArgs, format: IoFormat) -> anyhow::Result<VoConfig> {
-    let frontend = match args.frontend {
-        Frontend::Klt => FrontendKind::Klt,
-        Frontend::Orb => FrontendKind::Orb,
-    };
+    let frontend = frontend_kind(args.frontend);
     let profile = args.profile.as_deref();
     let config = args.config.as_deref();
     Ok(visual::session_settings(
         frontend, format, profile, config, args.slam,
     )?)
+}
+
+/// The session's front end for the command-line choice.
+pub fn frontend_kind(frontend: Frontend) -> FrontendKind {
+    match frontend {
+        Frontend::Klt => FrontendKind::Klt,
+        Frontend::Orb => FrontendKind::Orb,
+    }
 }

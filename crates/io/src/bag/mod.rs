@@ -29,6 +29,7 @@
 //! * [`rgbd`]: an RGB-D camera's frames from a bag (colour and depth images paired by time,
 //!   the camera from `CameraInfo`), the frames a dataset folder gives.
 
+pub mod camera_image;
 pub mod cdr;
 pub mod chunk;
 pub mod connection;

@@ -3,11 +3,12 @@
 //! visual session runs the same on both.
 //!
 //! Choices, and why:
-//! * Colour and depth are both `sensor_msgs/Image`, so a topic is told by its first
-//!   message's encoding: colour is `rgb8`, `bgr8` or `mono8` (a grey image taken as colour with
-//!   equal channels), depth is `16UC1` (millimetres, as REP 118 and every depth driver store
-//!   it) or `32FC1` (metres; NaN, infinite or non-positive is no depth). Each is chosen when
-//!   there is one topic of its kind (`--rgb-topic`, `--depth-topic` otherwise).
+//! * Colour and depth are both `sensor_msgs/Image` (or `sensor_msgs/CompressedImage`, JPEG or
+//!   PNG, [`super::camera_image`]), so a topic is told by its first message's encoding: colour
+//!   is `rgb8`, `bgr8` or `mono8` (a grey image taken as colour with equal channels), depth is
+//!   `16UC1` (millimetres, as REP 118 and every depth driver store it) or `32FC1` (metres; NaN,
+//!   infinite or non-positive is no depth). Each is chosen when there is one topic of its kind
+//!   (`--rgb-topic`, `--depth-topic` otherwise).
 //! * The camera is the first `sensor_msgs/CameraInfo` of its topic: the only one, else the one
 //!   beside the colour topic (`/camera/rgb/camera_info` for `/camera/rgb/image_color`), else
 //!   `--camera-info-topic`. Depth must be registered to colour (RealSense's
@@ -20,8 +21,9 @@
 //!   ([`BagRgbd::observations`]), so memory does not grow with the bag. A frame whose image
 //!   does not decode is an `Err` item, and the frames after it still come.
 
+use super::camera_image::CameraImage;
 use super::connection::Connection;
-use super::messages::{is_type, CameraInfoMsg, ImageMsg, Pixels, RosMessage};
+use super::messages::{is_type, CameraInfoMsg, CompressedImageMsg, ImageMsg, Pixels, RosMessage};
 use super::scans::{choose_topic, topic_list};
 use super::BagError;
 use crate::dataset::checked_camera;
@@ -116,7 +118,10 @@ impl BagRgbd {
         for (i, (topic, flag)) in asked.into_iter().enumerate() {
             if let Some(topic) = topic.as_deref() {
                 if i < 2 {
-                    choose_topic::<ImageMsg, _>(bag, Some(topic), flag)?;
+                    // either kind of image message
+                    choose_topic::<ImageMsg, _>(bag, Some(topic), flag).or_else(|e| {
+                        choose_topic::<CompressedImageMsg, _>(bag, Some(topic), flag).or(Err(e))
+                    })?;
                 } else {
                     choose_topic::<CameraInfoMsg, _>(bag, Some(topic), flag)?;
                 }
@@ -125,14 +130,17 @@ impl BagRgbd {
         let mut images: BTreeMap<String, ImageTopic> = BTreeMap::new();
         let mut infos: BTreeMap<String, Option<CameraInfoMsg>> = BTreeMap::new();
         bag.read_stored(&mut |conn, msg| {
-            if is_type::<ImageMsg>(conn) {
+            if CameraImage::is_image(conn) {
                 let topic = images.entry(conn.topic.clone()).or_default();
-                if let Ok(m) = ImageMsg::decode_from(conn, msg.data) {
-                    topic.encoding.get_or_insert(m.encoding);
-                    topic.size.get_or_insert((m.width, m.height));
-                    topic
-                        .stamps
-                        .push((m.header.stamp.as_secs_f64(), topic.messages));
+                if let Ok(Some(m)) = CameraImage::decode_from(conn, msg.data) {
+                    if topic.encoding.is_none() {
+                        topic.encoding = m.encoding().ok();
+                    }
+                    if topic.size.is_none() {
+                        topic.size = m.size().ok();
+                    }
+                    let t = m.header().stamp.as_secs_f64();
+                    topic.stamps.push((t, topic.messages));
                 }
                 topic.messages += 1;
             } else if is_type::<CameraInfoMsg>(conn) {
@@ -244,7 +252,7 @@ impl BagRgbd {
             bag.find_connections()?;
             bag.read_stored(&mut |conn: &Connection, msg| {
                 // Counted as the first read counted them: images of the topic.
-                let (seen, want, colour) = if !is_type::<ImageMsg>(conn) {
+                let (seen, want, colour) = if !CameraImage::is_image(conn) {
                     return;
                 } else if conn.topic == self.rgb_topic {
                     (&mut seen_rgb, &want_rgb, true)
@@ -258,12 +266,13 @@ impl BagRgbd {
                 let Some(&frame) = want.get(&number).filter(|_| open) else {
                     return;
                 };
-                let image = ImageMsg::decode_from(conn, msg.data).map_err(|e| e.to_string());
+                let image = CameraImage::decode_from(conn, msg.data)
+                    .and_then(|m| m.ok_or_else(|| "not an image".to_string()));
                 let halves = pending.entry(frame).or_default();
                 if colour {
-                    halves.0 = Some(image.and_then(|m| colour_image(&m)));
+                    halves.0 = Some(image.and_then(|m| m.colour()));
                 } else {
-                    halves.1 = Some(image.and_then(|m| depth_image(&m)));
+                    halves.1 = Some(image.and_then(|m| m.depth()));
                 }
                 while let Some((Some(_), Some(_))) = pending.get(&next) {
                     let Some((Some(c), Some(d))) = pending.remove(&next) else {
@@ -292,25 +301,10 @@ impl BagRgbd {
         color: Result<RgbImage, String>,
         depth_m: Result<Image<f32>, String>,
     ) -> Result<Observation, IoError> {
-        let (color, depth_m) = color
-            .and_then(|c| depth_m.map(|d| (c, d)))
-            .map_err(|why| self.frame_error(index, &why))?;
-        if (color.width(), color.height()) != (depth_m.width(), depth_m.height()) {
-            let why = format!(
-                "colour is {}×{}, depth {}×{}: depth must be registered to colour",
-                color.width(),
-                color.height(),
-                depth_m.width(),
-                depth_m.height()
-            );
-            return Err(self.frame_error(index, &why));
-        }
         let timestamp = self.frames.get(index).map_or(f64::NAN, |f| f.timestamp);
-        Ok(Observation::Rgbd(observation::RgbdFrame {
-            timestamp,
-            color,
-            depth_m,
-        }))
+        color
+            .and_then(|c| depth_m.and_then(|d| rgbd_frame(timestamp, c, d)))
+            .map_err(|why| self.frame_error(index, &why))
     }
 
     fn frame_error(&self, index: usize, why: &str) -> IoError {
@@ -413,10 +407,39 @@ fn pick_info(
     }
 }
 
+/// An RGB-D frame of a colour image and the depth image registered to it.
+///
+/// # Errors
+/// Images of different sizes (depth not registered to colour).
+pub fn rgbd_frame(
+    timestamp: f64,
+    color: RgbImage,
+    depth_m: Image<f32>,
+) -> Result<Observation, String> {
+    if (color.width(), color.height()) != (depth_m.width(), depth_m.height()) {
+        return Err(format!(
+            "colour is {}×{}, depth {}×{}: depth must be registered to colour",
+            color.width(),
+            color.height(),
+            depth_m.width(),
+            depth_m.height()
+        ));
+    }
+    Ok(Observation::Rgbd(observation::RgbdFrame {
+        timestamp,
+        color,
+        depth_m,
+    }))
+}
+
 /// The camera of a `CameraInfo`: `K`'s fx, fy, cx, cy, the image size (the colour images'
 /// when the message leaves it 0), and `plumb_bob` / `rational_polynomial` distortion's k1, k2,
 /// p1, p2, k3.
-fn camera_of(
+///
+/// # Errors
+/// A calibration for another image size, a distortion model that is not read, or
+/// intrinsics that do not make a camera.
+pub fn camera_of(
     info: &CameraInfoMsg,
     image_size: Option<(u32, u32)>,
 ) -> Result<PinholeCamera, String> {
@@ -453,7 +476,10 @@ fn camera_of(
 }
 
 /// A colour image message as RGB (`mono8` with three equal channels).
-fn colour_image(msg: &ImageMsg) -> Result<RgbImage, String> {
+///
+/// # Errors
+/// Another encoding, or pixels that do not fit the size.
+pub fn colour_image(msg: &ImageMsg) -> Result<RgbImage, String> {
     let (w, h) = (msg.width as usize, msg.height as usize);
     let pixels = match msg.pixels()? {
         Pixels::Rgb8(p) => p,
@@ -464,7 +490,10 @@ fn colour_image(msg: &ImageMsg) -> Result<RgbImage, String> {
 }
 
 /// A depth image message in metres, 0.0 where there is no depth.
-fn depth_image(msg: &ImageMsg) -> Result<Image<f32>, String> {
+///
+/// # Errors
+/// Another encoding, or pixels that do not fit the size.
+pub fn depth_image(msg: &ImageMsg) -> Result<Image<f32>, String> {
     let (w, h) = (msg.width as usize, msg.height as usize);
     let size_error = || "image size does not match its pixels".to_string();
     match msg.pixels()? {

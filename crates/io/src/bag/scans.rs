@@ -367,7 +367,7 @@ fn ancestors(statics: &StaticTree, frame: &str) -> Vec<(String, Pose3)> {
 }
 
 /// `target_from_source` through the static tree, when the two frames are connected.
-fn lookup(statics: &StaticTree, target: &str, source: &str) -> Option<Pose3> {
+pub fn lookup(statics: &StaticTree, target: &str, source: &str) -> Option<Pose3> {
     let from_source = ancestors(statics, source);
     ancestors(statics, target)
         .into_iter()

@@ -120,8 +120,7 @@ where
         let mut frames = Vec::new();
         for prepared in &rx_prepared {
             if let Some(u) = session.track(prepared) {
-                let tracked = !matches!(u.frame, FrameStatus::Failed(_));
-                if let Some(pose) = u.update.pose.filter(|_| tracked) {
+                if let Some(pose) = u.tracked_pose() {
                     trajectory.push(u.update.timestamp, pose);
                 }
                 progress(&u);

@@ -7,6 +7,7 @@ use super::{check_closures, LoopClosure, LoopStats, VisualOutput, VisualRun, Vis
 use crate::report::merge_json;
 use crate::SlamError;
 use serde_json::{json, Value};
+use slamkit_core::Trajectory;
 use slamkit_io::{Dataset, DatasetFormat};
 use slamkit_vo::{evaluate, VoMetrics};
 use std::path::Path;
@@ -47,22 +48,32 @@ impl DatasetRun {
         dataset: &Dataset,
         format: DatasetFormat,
     ) -> Result<(Value, Option<VoMetrics>), SlamError> {
-        let trajectory = &self.run.trajectory;
-        slamkit_io::trajectory_file::write_tum(&out.join("trajectory.tum"), trajectory)?;
         if format == DatasetFormat::Kitti {
+            let trajectory = &self.run.trajectory;
             slamkit_io::trajectory_file::write_kitti(&out.join("trajectory.kitti"), trajectory)?;
         }
-        let metrics = match dataset.ground_truth() {
-            Some(gt) => {
-                dataset.write_ground_truth_tum(&out.join("groundtruth.tum"))?;
-                Some(evaluate(trajectory, gt)?)
-            }
+        if dataset.ground_truth().is_some() {
+            dataset.write_ground_truth_tum(&out.join("groundtruth.tum"))?;
+        }
+        self.write_files(out, dataset.ground_truth())
+    }
+
+    /// Writes `trajectory.tum` and `cloud.ply` into `out` (a run of any source: a dataset, a
+    /// live camera); returns the report's fields as [`Self::write`] does, scored against
+    /// `ground_truth` when there is one.
+    pub fn write_files(
+        &self,
+        out: &Path,
+        ground_truth: Option<&Trajectory>,
+    ) -> Result<(Value, Option<VoMetrics>), SlamError> {
+        let trajectory = &self.run.trajectory;
+        slamkit_io::trajectory_file::write_tum(&out.join("trajectory.tum"), trajectory)?;
+        let metrics = match ground_truth {
+            Some(gt) => Some(evaluate(trajectory, gt)?),
             None => None,
         };
         let loop_closure = self.loops.as_ref().map(|(stats, closures)| {
-            let check = dataset
-                .ground_truth()
-                .map(|gt| check_closures(closures, gt));
+            let check = ground_truth.map(|gt| check_closures(closures, gt));
             json!({ "stats": stats, "closures": closures, "against_ground_truth": check })
         });
         let map = self.output.point_map.as_ref();
