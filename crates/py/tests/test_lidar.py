@@ -36,26 +36,15 @@ def intel(data, cli, tmp_path_factory):
             "cli_trajectory": cli_trajectory, "recording": out / "intel.mcap"}
 
 
-def test_recording_opens_in_an_independent_mcap_reader(intel):
-    """`--record` as Foxglove and rerun would read it, through the MCAP project's own Python
-    reader: every channel with its Foxglove schema, counts equal to the run's, log times in
-    order, the last pose the trajectory's last, the last map a valid grid."""
-    reader_module = pytest.importorskip("mcap.reader")
+def test_recording_opens_in_an_independent_mcap_reader(intel, read_recording):
+    """`--record` as Foxglove would read it, through the MCAP project's own Python reader: every
+    channel with its Foxglove schema, counts equal to the run's, log times in order, the last
+    pose the trajectory's last, the last map a valid grid."""
     report = intel["report"]
     schemas = {"/scan": "foxglove.LaserScan", "/pose": "foxglove.PoseInFrame",
                "/tf": "foxglove.FrameTransform", "/map": "foxglove.Grid",
                "/path": "foxglove.PosesInFrame"}
-    counts, last, last_time = {}, {}, 0
-    with open(intel["recording"], "rb") as f:
-        reader = reader_module.make_reader(f)
-        for schema, channel, message in reader.iter_messages(log_time_order=False):
-            assert schema.name == schemas[channel.topic], channel.topic
-            assert channel.message_encoding == "json"
-            assert message.log_time >= last_time  # written in time order
-            last_time = message.log_time
-            counts[channel.topic] = counts.get(channel.topic, 0) + 1
-            last[channel.topic] = message
-    assert set(counts) == set(schemas)
+    counts, _, last = read_recording(intel["recording"], schemas)
     assert counts == report["recording"]["messages"]
     assert counts["/scan"] == report["frames"]["read"]
     poses = intel["cli_trajectory"]

@@ -42,12 +42,12 @@ def test_bad_input_gives_one_line_errors(tmp_path):
         slamkit.Dataset(tmp_path, format="betamax")
 
 
-def test_recording_of_7_scenes_opens_in_an_independent_mcap_reader(data, cli, tmp_path):
-    """`vo --slam --record` as Foxglove and rerun would read it, through the MCAP project's own
-    Python reader: every channel with its Foxglove schema, counts equal to the run's, log times
-    in order, every frame's image a JPEG of the camera's size, the last path the (loop-closed)
+def test_recording_of_7_scenes_opens_in_an_independent_mcap_reader(data, cli, tmp_path,
+                                                                   read_recording):
+    """`vo --slam --record` as Foxglove would read it, through the MCAP project's own Python
+    reader: every channel with its Foxglove schema, counts equal to the run's, log times in
+    order, every frame's image a JPEG of the camera's size, the last path the (loop-closed)
     trajectory, the map the run's point cloud."""
-    reader_module = pytest.importorskip("mcap.reader")
     folder = data / "rgbd" / "7scenes_redkitchen_frames_0000-0599"
     out, recording = tmp_path / "vo", tmp_path / "7scenes.mcap"
     cli("vo", folder, "--slam", "--out", out, "--record", recording)
@@ -57,17 +57,7 @@ def test_recording_of_7_scenes_opens_in_an_independent_mcap_reader(data, cli, tm
     schemas = {"/camera/image": "foxglove.CompressedImage", "/pose": "foxglove.PoseInFrame",
                "/tf": "foxglove.FrameTransform", "/path": "foxglove.PosesInFrame",
                "/map": "foxglove.PointCloud"}
-    counts, first, last, last_time = {}, {}, {}, 0
-    with open(recording, "rb") as f:
-        reader = reader_module.make_reader(f)
-        for schema, channel, message in reader.iter_messages(log_time_order=False):
-            assert schema.name == schemas[channel.topic], channel.topic
-            assert channel.message_encoding == "json"
-            assert message.log_time >= last_time  # written in time order
-            last_time = message.log_time
-            counts[channel.topic] = counts.get(channel.topic, 0) + 1
-            first.setdefault(channel.topic, message)
-            last[channel.topic] = message
+    counts, first, last = read_recording(recording, schemas)
     assert counts == report["recording"]["messages"]
     assert counts["/camera/image"] == report["frames"]["read"] == 600
     assert counts["/pose"] == counts["/tf"] == len(trajectory)
