@@ -61,11 +61,33 @@ pub fn stop_flag() -> anyhow::Result<Arc<AtomicBool>> {
 /// run left there that this one did not write (said on stderr). A report whose
 /// `metrics.error` is set (scoring failed) is written, then returned as the run's error.
 pub fn finish(folder: OutputFolder, report: &serde_json::Value) -> anyhow::Result<()> {
+    finish_run(folder, report, None)
+}
+
+/// [`finish`], with `report.html` beside `report.json`: the page of
+/// [`slamkit_slam::report::page`], headed `title`, drawn from the folder's outputs.
+pub fn finish_with_page(
+    folder: OutputFolder,
+    report: &serde_json::Value,
+    title: &str,
+) -> anyhow::Result<()> {
+    finish_run(folder, report, Some(title))
+}
+
+fn finish_run(
+    folder: OutputFolder,
+    report: &serde_json::Value,
+    page_title: Option<&str>,
+) -> anyhow::Result<()> {
     let mut report = report.clone();
     report["peak_rss_bytes"] = serde_json::json!(slamkit_slam::memory::peak_rss_bytes());
     let text = serde_json::to_string_pretty(&report).context("serialising report")?;
     std::fs::write(folder.path().join("report.json"), text + "\n")
         .with_context(|| format!("writing report.json in {}", folder.dir().display()))?;
+    if let Some(title) = page_title {
+        slamkit_slam::report::page::write_run_page(folder.path(), title, &report)
+            .with_context(|| format!("writing report.html in {}", folder.dir().display()))?;
+    }
     let dir = folder.dir().to_path_buf();
     let removed = folder.commit()?;
     if !removed.is_empty() {

@@ -89,6 +89,16 @@ fn broken_scans_are_skipped_and_counted_by_reason() {
     );
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    // report.html: the map with the trajectory on it, zoomable, and the time per stage
+    let page = std::fs::read_to_string(out.join("report.html")).unwrap();
+    for part in [
+        "<h2>Map</h2>",
+        "<svg class=\"zoomable\"",
+        "<image ",
+        "Time per stage",
+    ] {
+        assert!(page.contains(part), "report.html lacks {part}");
+    }
     let scans = &report["scans"];
     // 60 scan lines: the truncated one is unreadable, 59 are read; the all-NaN scan is read
     // (non-finite beams are beams without a return, issue 25 item 6) and skipped as broken.

@@ -33,7 +33,13 @@ fn office_seed_1_reaches_the_built_in_goal() {
     assert!(length > 0.8 * optimal && length < 1.25 * optimal, "{m}");
     assert!(m["max_cross_track_m"].as_f64().unwrap() <= 0.17, "{m}");
     assert!(m["time_s"].as_f64().unwrap() < 120.0, "{m}");
-    for file in ["map.png", "trajectory.tum", "groundtruth.tum", "frames.csv"] {
+    for file in [
+        "map.png",
+        "trajectory.tum",
+        "groundtruth.tum",
+        "frames.csv",
+        "report.html",
+    ] {
         assert!(out.join(file).metadata().unwrap().len() > 100, "{file}");
     }
     let tum = std::fs::read_to_string(out.join("trajectory.tum")).unwrap();

@@ -84,6 +84,15 @@ fn rgbd_vo_on_a_simulated_60_s_office_sequence_is_within_2_cm() {
     // the robot really travelled: drive path with turns, about 11 m in 60 s
     assert!(length > 10.0, "path {length} m");
     assert!(ate <= 0.02, "ATE RMSE {ate} m > 0.02 m");
+    // report.html: the truth and the aligned estimate from above, the error over time
+    let page = std::fs::read_to_string(vo_out.join("report.html")).unwrap();
+    for part in [
+        "Trajectory from above",
+        "Position error over time",
+        "Time per stage",
+    ] {
+        assert!(page.contains(part), "report.html lacks {part}");
+    }
     // the map file holds the session's keyframes, each with its points
     let file = slamkit_slam::map_file::MapFile::load(&map).unwrap();
     let keyframes = report["map"]["keyframes"].as_u64().unwrap() as usize;

@@ -13,6 +13,7 @@
 //!   compute them.
 //! * [`plot`] — top view and error-over-time figures (PNG or SVG), written atomically.
 //! * [`report_html`] — self-contained HTML report pages, images embedded.
+//! * [`report_svg`] — zoomable maps with paths, and charts over time, as inline SVG for them.
 //!
 //! Poses are `world_from_body` ([`slamkit_core::Pose3`]); errors are in metres and degrees.
 //! Relations and trajectory formats are [`slamkit_io`]'s types, so what it reads is scored as
@@ -24,12 +25,15 @@ pub mod ate;
 pub mod plot;
 pub mod relations;
 pub mod report_html;
+pub mod report_svg;
 pub mod rpe;
 pub mod stats;
 
 pub use association::{associate, Pairing, PosePair, DEFAULT_MAX_DIFF_S};
 pub use ate::{ate, Alignment, AteResult};
-pub use relations::{relations_error, GroundTruthRelation, RelationsStats};
+pub use relations::{
+    relation_errors, relations_error, GroundTruthRelation, RelationError, RelationsStats,
+};
 pub use rpe::{rpe, DeltaUnit, RpeConfig, RpeResult};
 pub use stats::ErrorStats;
 

@@ -69,34 +69,65 @@ impl std::fmt::Display for RelationsStats {
     }
 }
 
-/// Scores `estimate` on `relations`.
+/// The error of one scored relation: what [`relations_error`] averages, and what a report
+/// draws over time.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct RelationError {
+    /// The relation's first timestamp \[s\].
+    pub t1: f64,
+    /// Its second timestamp \[s\].
+    pub t2: f64,
+    /// Translational error \[m\].
+    pub trans_m: f64,
+    /// Rotational error \[deg\].
+    pub rot_deg: f64,
+}
+
+/// The error of every relation of `relations` whose two ends have an estimated pose, in the
+/// file's order.
 ///
 /// # Errors
-/// [`EvalError::NonFiniteTimestamp`] for a NaN stamp in the estimate, [`EvalError::NoRelations`]
-/// when no relation can be scored, [`EvalError::NonFiniteError`] (relation index) for a broken
-/// pose.
-pub fn relations_error(
+/// [`EvalError::NonFiniteTimestamp`] for a NaN stamp in the estimate, [`EvalError::NonFiniteError`]
+/// (relation index) for a broken pose.
+pub fn relation_errors(
     relations: &[GroundTruthRelation],
     estimate: &Trajectory,
-) -> Result<RelationsStats, EvalError> {
+) -> Result<Vec<RelationError>, EvalError> {
     let index = StampIndex::new(estimate)?;
-    let mut trans = Vec::with_capacity(relations.len());
-    let mut rot_deg = Vec::with_capacity(relations.len());
+    let mut errors = Vec::with_capacity(relations.len());
     for (i, rel) in relations.iter().enumerate() {
         let (Some(p1), Some(p2)) = (index.pose_at(rel.t1), index.pose_at(rel.t2)) else {
             continue;
         };
         let error = rel.t1_from_t2.inverse() * (p1.inverse() * p2);
-        let (t, r) = (
+        let (trans_m, rot_deg) = (
             error.translation.vector.norm(),
             error.rotation.angle().to_degrees(),
         );
-        if !(t.is_finite() && r.is_finite()) {
+        if !(trans_m.is_finite() && rot_deg.is_finite()) {
             return Err(EvalError::NonFiniteError { index: i });
         }
-        trans.push(t);
-        rot_deg.push(r);
+        errors.push(RelationError {
+            t1: rel.t1,
+            t2: rel.t2,
+            trans_m,
+            rot_deg,
+        });
     }
+    Ok(errors)
+}
+
+/// Scores `estimate` on `relations`: the statistics of [`relation_errors`].
+///
+/// # Errors
+/// As [`relation_errors`], and [`EvalError::NoRelations`] when no relation can be scored.
+pub fn relations_error(
+    relations: &[GroundTruthRelation],
+    estimate: &Trajectory,
+) -> Result<RelationsStats, EvalError> {
+    let errors = relation_errors(relations, estimate)?;
+    let trans: Vec<f64> = errors.iter().map(|e| e.trans_m).collect();
+    let rot_deg: Vec<f64> = errors.iter().map(|e| e.rot_deg).collect();
     let (Some((trans_mean, trans_std)), Some((rot_mean_deg, rot_std_deg))) =
         (mean_std(&trans), mean_std(&rot_deg))
     else {

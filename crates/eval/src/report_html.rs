@@ -1,6 +1,7 @@
 //! Self-contained HTML reports: one page, every image embedded as a base64 `data:` URI, no
-//! script and no network, so a report can be mailed, archived or opened offline and still
-//! show its plots and maps (`report.html` of `slamkit demo`).
+//! network, so a report can be mailed, archived or opened offline and still show its plots
+//! and maps (`report.html` of every run). The only script a page may hold is the few lines
+//! that zoom its maps ([`crate::report_svg::ZOOM_SCRIPT`]).
 //!
 //! ```
 //! use slamkit_eval::report_html::HtmlReport;
@@ -91,6 +92,11 @@ impl HtmlReport {
             self.html.push_str("</tr>\n");
         }
         self.html.push_str("</table>\n");
+    }
+
+    /// HTML inserted as given: a figure of [`crate::report_svg`], or its zoom script.
+    pub fn raw(&mut self, html: &str) {
+        self.html.push_str(html);
     }
 
     /// A PNG image at its own size, or as wide as the page at most when `plot` (for figures

@@ -1,5 +1,7 @@
 //! Pieces of the JSON reports that every shell (the CLI, the ROS 2 node, the fleet, Python)
-//! assembles from a session's parts.
+//! assembles from a session's parts, and the run's `report.html` ([`page`]).
+
+pub mod page;
 
 use serde_json::Value;
 

@@ -6,7 +6,7 @@
 use crate::commands::bag::TopicArgs;
 use crate::commands::eval::load_relations;
 use crate::commands::{lidar_drone, lidar_mcl};
-use crate::output::{finish, merge_json, progress_bar, Unsuccessful};
+use crate::output::{finish_with_page, merge_json, progress_bar, Unsuccessful};
 use anyhow::Context;
 use serde::de::DeserializeOwned;
 use serde::Serialize;
@@ -29,7 +29,7 @@ use std::time::Instant;
 pub(crate) const OUTPUTS: &[&str] = &[
     "trajectory.tum", "trajectory_map.tum", "trajectory_pf.tum", "map.pgm", "map.yaml",
     "map.png", "map.skmap", "map_pf.pgm", "map_pf.yaml", "map_pf.png", "maps", "cloud.ply",
-    "report.json",
+    "report.json", "report.html",
 ];
 
 /// SLAM methods.
@@ -186,7 +186,7 @@ pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
         "metrics": relations_metrics(args, &trajectory),
     });
     merge_json(&mut report, session.run_report(&log));
-    finish(folder, &report)?;
+    finish_with_page(folder, &report, &page_title(args))?;
     print_summary(&args.out, &report);
     let jumps = session.stats().odometry_rejected;
     if jumps > 0 {
@@ -257,6 +257,12 @@ pub(crate) fn load_config<C: Serialize + DeserializeOwned + Default>(
 /// `error` ([`finish`] writes the report, then fails with it).
 pub(crate) fn relations_metrics(args: &LidarArgs, trajectory: &Trajectory) -> serde_json::Value {
     run_report::relations_metrics(args.relations.as_deref(), &args.log, trajectory)
+}
+
+/// The heading of the run's report.html: the command and the log's file name.
+pub(crate) fn page_title(args: &LidarArgs) -> String {
+    let name = args.log.file_name().unwrap_or(args.log.as_os_str());
+    format!("slamkit lidar: {}", name.to_string_lossy())
 }
 
 /// An explicit `--relations` file is read before the run, so a wrong path fails at once.

@@ -11,9 +11,9 @@
 //! `--method rbpf` `trajectory_pf.tum` and `map_pf.*`, and with `--save-map` the `.skmap`.
 
 use crate::commands::lidar::{
-    load_config, print_summary, read_log, relations_metrics, LidarArgs, Method, OUTPUTS,
+    load_config, page_title, print_summary, read_log, relations_metrics, LidarArgs, Method, OUTPUTS,
 };
-use crate::output::{finish, merge_json, progress_bar, Unsuccessful};
+use crate::output::{finish_with_page, merge_json, progress_bar, Unsuccessful};
 use serde_json::json;
 use slamkit_core::observation::time_ordered;
 use slamkit_core::Observation;
@@ -82,7 +82,7 @@ pub fn run(args: &LidarArgs, ranges: &Path) -> anyhow::Result<()> {
         "metrics": relations_metrics(args, &trajectory),
     });
     merge_json(&mut report, session.run_report(&log));
-    finish(folder, &report)?;
+    finish_with_page(folder, &report, &page_title(args))?;
     println!("{} height layers", layer_files.len());
     print_summary(&args.out, &report);
     let Some(stats) = session.in_map_stats() else {

@@ -4,9 +4,9 @@
 //! as the session paths.
 
 use crate::commands::lidar::{
-    load_config, print_summary, read_log, relations_metrics, LidarArgs, OUTPUTS,
+    load_config, page_title, print_summary, read_log, relations_metrics, LidarArgs, OUTPUTS,
 };
-use crate::output::{finish, merge_json, progress_bar, Unsuccessful};
+use crate::output::{finish_with_page, merge_json, progress_bar, Unsuccessful};
 use anyhow::Context;
 use serde_json::json;
 use slamkit_io::output_folder::OutputFolder;
@@ -50,7 +50,7 @@ pub fn run_localization(args: &LidarArgs, map_path: &Path) -> anyhow::Result<()>
         "metrics": relations_metrics(args, &result.trajectory),
     });
     merge_json(&mut report, run_report::mcl_report(&result, &config, &log));
-    finish(folder, &report)?;
+    finish_with_page(folder, &report, &page_title(args))?;
     print_summary(&args.out, &report);
     match result.stats.first_converged_scan {
         Some(scan) => println!("converged at scan {scan}"),

@@ -107,7 +107,7 @@ fn merge(files: &[PathBuf], out: &Path) -> anyhow::Result<()> {
     report["config"] = serde_json::to_value(&config)?;
     report["wall_seconds"] = serde_json::json!(start.elapsed().as_secs_f64());
     report["timings_ms"] = serde_json::json!(outcome.timings.summary());
-    crate::output::finish(folder, &report)?;
+    crate::output::finish_with_page(folder, &report, "slamkit map merge")?;
     let unmerged = outcome.unmerged();
     println!(
         "{} of {} maps merged ({} closures found, {} accepted){} in {}",

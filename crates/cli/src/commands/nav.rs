@@ -13,7 +13,7 @@
 //! `metrics.max_cross_track_m`, ...).
 
 use crate::commands::plan::parse_xy;
-use crate::output::{finish, Unsuccessful};
+use crate::output::{finish_with_page, Unsuccessful};
 use nalgebra::Point2;
 use serde_json::json;
 use slamkit_io::output_folder::OutputFolder;
@@ -32,6 +32,7 @@ const OUTPUTS: &[&str] = &[
     "map.skmap",
     "frames.csv",
     "report.json",
+    "report.html",
 ];
 
 /// Arguments of `slamkit nav`.
@@ -93,7 +94,8 @@ pub fn run(args: &NavArgs) -> anyhow::Result<()> {
         "timings_ms": o.timings.summary(),
         "wall_seconds": started.elapsed().as_secs_f64(),
     });
-    finish(folder, &report)?;
+    let title = format!("slamkit nav: {world_name} world, seed {}", args.seed);
+    finish_with_page(folder, &report, &title)?;
     println!("{}; written to {}", o.summary(), args.out.display());
     if !o.reached {
         return Err(Unsuccessful(format!(

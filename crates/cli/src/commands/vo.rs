@@ -3,7 +3,7 @@
 //! cloud and report written to the output folder, and with `--save-map` the keyframes as a
 //! `.skmap` file.
 
-use crate::output::{finish, merge_json, progress_bar};
+use crate::output::{finish_with_page, merge_json, progress_bar};
 use anyhow::Context;
 use serde_json::json;
 use slamkit_core::Observation;
@@ -27,6 +27,7 @@ const OUTPUTS: &[&str] = &[
     "groundtruth.tum",
     "cloud.ply",
     "report.json",
+    "report.html",
 ];
 
 /// Dataset folder layouts `slamkit vo` reads.
@@ -227,7 +228,15 @@ pub fn run(args: &VoArgs) -> anyhow::Result<()> {
     );
     report["map"]["saved_to"] = json!(args.save_map);
     report["map"]["localised_in"] = json!(args.localize);
-    finish(folder, &report)?;
+    let name = args
+        .dataset_dir
+        .file_name()
+        .unwrap_or(args.dataset_dir.as_os_str());
+    finish_with_page(
+        folder,
+        &report,
+        &format!("slamkit vo: {}", name.to_string_lossy()),
+    )?;
     println!("{}", run_files::summary(&report));
     if let Some(metrics) = &metrics {
         println!("{metrics}");

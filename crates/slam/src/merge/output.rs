@@ -19,6 +19,7 @@ pub const MERGE_FILES: &[&str] = &[
     "cloud.ply",
     "trajectory.tum",
     "report.json",
+    "report.html",
 ];
 
 /// The merged map of `outcome` as a map file, its header's notes `method` and the inputs'
