@@ -77,7 +77,8 @@ fn a_lossy_fleet_with_a_disconnection_and_crashes_merges_as_a_loss_free_one() {
 
     // the loss-free merge: offline, of the maps the robots' messages build
     let mut offline = Command::new(env!("CARGO_BIN_EXE_slamkit"));
-    offline.args(["map", "merge"]);
+    offline.args(["map", "merge", "--config"]);
+    offline.arg(out.join("merge.toml"));
     for name in ["robot_0", "robot_1"] {
         let copy = tmp.path().join(format!("{name}.skmap"));
         std::fs::copy(out.join(name).join("sent.skmap"), &copy).unwrap();

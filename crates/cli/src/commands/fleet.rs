@@ -3,7 +3,6 @@
 
 use crate::commands::fleet_sim::FleetSim;
 use crate::output::{finish, progress_bar, stop_flag};
-use anyhow::Context;
 use slamkit_fleet::{robot_node::ROBOT_FILES, MergerNode, MergerNodeConfig, PeerConfig};
 use slamkit_fleet::{RobotNode, RobotNodeConfig};
 use slamkit_io::output_folder::OutputFolder;
@@ -50,7 +49,7 @@ enum FleetCommand {
         loss: Option<f64>,
         /// Leave the network (close the Zenoh session) FROM seconds of log time after the first
         /// scan, for SECONDS of log time, then join again (tests of a robot out of range).
-        #[arg(long, value_name = "FROM,SECONDS", value_delimiter = ',', num_args = 2)]
+        #[arg(long, value_name = "FROM,SECONDS", value_delimiter = ',')]
         disconnect: Option<Vec<f64>>,
         /// Named profile of the robot (or a profile file `X.toml`): its `[lidar]` settings,
         /// as `slamkit lidar --profile` takes them.
@@ -131,7 +130,11 @@ pub fn run(args: &FleetArgs) -> anyhow::Result<()> {
             let slam = LidarSlam::new(settings, Default::default())?;
             let mut config = RobotNodeConfig::new(&args.fleet, robot, peer, out);
             (config.rate, config.loss) = (*rate, loss.map(|p| (p, 1)));
-            config.disconnect = disconnect.as_ref().map(|d| (d[0], d[1]));
+            config.disconnect = match disconnect.as_deref() {
+                None => None,
+                Some(&[from, seconds]) => Some((from, seconds)),
+                Some(other) => anyhow::bail!("--disconnect {other:?}: give FROM,SECONDS"),
+            };
             let mut node = RobotNode::start(config, slam)?;
             let bar = progress_bar(log.scans.len() as u64, "robot");
             let done = node.play(&log, &stop, |n| bar.set_position(n as u64))?;
@@ -177,12 +180,7 @@ pub fn run(args: &FleetArgs) -> anyhow::Result<()> {
         } => {
             let mut config = MergerNodeConfig::new(&args.fleet, peer);
             config.merge_every_s = *merge_every;
-            if let Some(path) = merge_config {
-                let text = std::fs::read_to_string(path)
-                    .with_context(|| format!("reading {}", path.display()))?;
-                config.merge = toml::from_str(&text)
-                    .with_context(|| format!("merge settings in {}", path.display()))?;
-            }
+            config.merge = crate::commands::map::merge_config(merge_config.as_deref())?;
             let mut node = MergerNode::start(config)?;
             node.run(&stop)?;
             let folder = OutputFolder::create(out, MERGE_FILES)?;

@@ -35,7 +35,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 /// How far \[m\] each robot's stretch of the drive path reaches into its neighbours'.
-pub const OVERLAP_M: f64 = 3.0;
+pub const OVERLAP_M: f64 = 4.0;
 /// An accepted inter-robot closure is wrong when its relative pose is further than this from
 /// the true one \[m\], or [`WRONG_CLOSURE_RAD`] in heading (an ICP fix is good to centimetres).
 const WRONG_CLOSURE_M: f64 = 0.25;
@@ -531,6 +531,7 @@ impl Processes {
         let (_, child, _) = self.child(name)?;
         child.kill()?;
         child.wait()?;
+        self.children.retain(|(n, _, _)| n != name);
         Ok(())
     }
 
