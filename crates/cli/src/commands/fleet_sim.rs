@@ -43,7 +43,7 @@ const WRONG_CLOSURE_M: f64 = 0.25;
 const WRONG_CLOSURE_RAD: f64 = 0.0873;
 /// The merger's settings laid over the defaults: place queries every metre of a robot's path
 /// instead of every 3 m. The defaults suit buildings like Intel's (30 m across); in a 13 m
-/// office with stretches that share 6 m of corridor, 3 m gives one or two queries per shared
+/// office with stretches that share 8 m of corridor, 3 m gives one or two queries per shared
 /// stretch, fewer than the three mutually consistent closures a merge needs.
 const MERGE_SETTINGS: &str = "[places]\nspacing_m = 1.0\n";
 /// How long each wait on a process may last at most.
