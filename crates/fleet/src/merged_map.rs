@@ -73,23 +73,7 @@ impl MergedMapInbox {
     pub fn new(session: zenoh::Session, fleet: &str, path: &Path) -> Result<Self, FleetError> {
         check_name(fleet)?;
         let (sender, arrivals) = channel();
-        let subscribe = |what| {
-            let sender = sender.clone();
-            session
-                .declare_subscriber(merged_key(fleet, what))
-                .callback(move |sample| {
-                    // the receiver is gone only once the inbox is dropped
-                    let _ = sender.send((sample, false));
-                })
-                .wait()
-                .map_err(FleetError::zenoh)
-        };
-        let subscribers = [subscribe(Merged::Map)?, subscribe(Merged::Status)?];
-        let querier = session
-            .declare_querier(merged_key(fleet, Merged::Map))
-            .timeout(QUERY_TIMEOUT)
-            .wait()
-            .map_err(FleetError::zenoh)?;
+        let (subscribers, querier) = declare(&session, fleet, &sender)?;
         Ok(Self {
             _session: session,
             querier,
@@ -103,6 +87,19 @@ impl MergedMapInbox {
             asked: None,
             receipts: MergedReceipts::default(),
         })
+    }
+
+    /// Listens again on `session` (a new one, after the robot's old session was closed: it
+    /// left the network) and asks for the merged map once the merger is in reach, so a map
+    /// published while the robot was away comes to it.
+    ///
+    /// # Errors
+    /// [`FleetError::Zenoh`] when a subscriber cannot be declared.
+    pub fn reconnect(&mut self, session: zenoh::Session) -> Result<(), FleetError> {
+        (self._subscribers, self.querier) = declare(&session, &self.fleet, &self.sender)?;
+        self._session = session;
+        (self.asked_first, self.asked) = (false, None);
+        Ok(())
     }
 
     /// Takes what arrived: writes a map newer than the one held to the file, and asks for the
@@ -197,6 +194,39 @@ impl MergedMapInbox {
     pub fn newest(&self) -> Option<Timestamp> {
         self.newest
     }
+}
+
+/// Declares on `session` the subscribers to `fleet`'s merged map and status, which hand what
+/// comes to `sender`, and the querier for the map.
+fn declare(
+    session: &zenoh::Session,
+    fleet: &str,
+    sender: &Sender<Arrival>,
+) -> Result<
+    (
+        [zenoh::pubsub::Subscriber<()>; 2],
+        zenoh::query::Querier<'static>,
+    ),
+    FleetError,
+> {
+    let subscribe = |what| {
+        let sender = sender.clone();
+        session
+            .declare_subscriber(merged_key(fleet, what))
+            .callback(move |sample| {
+                // the receiver is gone only once the inbox is dropped
+                let _ = sender.send((sample, false));
+            })
+            .wait()
+            .map_err(FleetError::zenoh)
+    };
+    let subscribers = [subscribe(Merged::Map)?, subscribe(Merged::Status)?];
+    let querier = session
+        .declare_querier(merged_key(fleet, Merged::Map))
+        .timeout(QUERY_TIMEOUT)
+        .wait()
+        .map_err(FleetError::zenoh)?;
+    Ok((subscribers, querier))
 }
 
 #[cfg(test)]

@@ -43,6 +43,9 @@ pub struct RobotPublisher {
     sent_bytes: usize,
     sent_messages: usize,
     dropped: usize,
+    /// Whether the session is open ([`RobotPublisher::disconnect`]).
+    online: bool,
+    held_back: usize,
 }
 
 impl RobotPublisher {
@@ -55,31 +58,7 @@ impl RobotPublisher {
         check_name(fleet)?;
         check_name(robot)?;
         let store: Store = Arc::default();
-        let served = Arc::clone(&store);
-        let queryable = session
-            .declare_queryable(robot_keys(fleet, robot))
-            .callback(move |query| {
-                let parameters = query.parameters();
-                let wanted = parameters
-                    .get(SEQS_PARAMETER)
-                    .map(parse_seqs)
-                    .unwrap_or_default();
-                let with_status = parameters.contains_key(STATUS_PARAMETER);
-                let replies: Vec<(String, Vec<u8>)> = match served.lock() {
-                    Ok(served) => wanted
-                        .iter()
-                        .filter_map(|s| served.messages.get(usize::try_from(*s).ok()?).cloned())
-                        .chain(served.status.clone().filter(|_| with_status))
-                        .collect(),
-                    Err(_) => Vec::new(),
-                };
-                for (key, bytes) in replies {
-                    // a reply that cannot go out is asked for again by the next query
-                    let _ = query.reply(key, bytes).wait();
-                }
-            })
-            .wait()
-            .map_err(FleetError::zenoh)?;
+        let queryable = answer_queries(&session, fleet, robot, &store)?;
         Ok(Self {
             session,
             fleet: fleet.to_string(),
@@ -91,7 +70,43 @@ impl RobotPublisher {
             sent_bytes: 0,
             sent_messages: 0,
             dropped: 0,
+            online: true,
+            held_back: 0,
         })
+    }
+
+    /// Leaves the network: closes the Zenoh session (its queryable goes with it), so peers
+    /// neither hear from it nor reach it; what [`publish`](Self::publish) is given meanwhile
+    /// is kept and stored but not sent (a robot out of Wi-Fi range).
+    ///
+    /// # Errors
+    /// [`FleetError::Zenoh`] when the session cannot be closed.
+    pub fn disconnect(&mut self) -> Result<(), FleetError> {
+        self.online = false;
+        self.session.close().wait().map_err(FleetError::zenoh)
+    }
+
+    /// Joins the network again on `session` (a new one: a closed session cannot reopen) and
+    /// answers queries for every message kept, those made while away included: peers fetch
+    /// what they missed.
+    ///
+    /// # Errors
+    /// [`FleetError::Zenoh`] when the queryable cannot be declared.
+    pub fn reconnect(&mut self, session: zenoh::Session) -> Result<(), FleetError> {
+        self._queryable = answer_queries(&session, &self.fleet, &self.robot, &self.store)?;
+        self.session = session;
+        self.online = true;
+        Ok(())
+    }
+
+    /// Whether it is on the network (not [`disconnect`](Self::disconnect)ed).
+    pub fn online(&self) -> bool {
+        self.online
+    }
+
+    /// Messages kept but not sent because the robot was disconnected.
+    pub fn held_back(&self) -> usize {
+        self.held_back
     }
 
     /// Drops a fraction `p` of publications (the messages are still kept and served to
@@ -179,6 +194,10 @@ impl RobotPublisher {
             }
             self.lock()?.messages.push((key.clone(), bytes.clone()));
         }
+        if !self.online {
+            self.held_back += usize::from(update.stream() != Stream::Status);
+            return Ok(true);
+        }
         if let Some((p, rng)) = &mut self.loss {
             if rng.gen::<f64>() < *p {
                 self.dropped += 1;
@@ -232,6 +251,41 @@ impl RobotPublisher {
             .lock()
             .map_err(|_| FleetError::Zenoh("the message store was poisoned".into()))
     }
+}
+
+/// Declares on `session` the queryable that answers `robot`'s messages in `store` by sequence
+/// number, and its latest status.
+fn answer_queries(
+    session: &zenoh::Session,
+    fleet: &str,
+    robot: &str,
+    store: &Store,
+) -> Result<zenoh::query::Queryable<()>, FleetError> {
+    let served = Arc::clone(store);
+    session
+        .declare_queryable(robot_keys(fleet, robot))
+        .callback(move |query| {
+            let parameters = query.parameters();
+            let wanted = parameters
+                .get(SEQS_PARAMETER)
+                .map(parse_seqs)
+                .unwrap_or_default();
+            let with_status = parameters.contains_key(STATUS_PARAMETER);
+            let replies: Vec<(String, Vec<u8>)> = match served.lock() {
+                Ok(served) => wanted
+                    .iter()
+                    .filter_map(|s| served.messages.get(usize::try_from(*s).ok()?).cloned())
+                    .chain(served.status.clone().filter(|_| with_status))
+                    .collect(),
+                Err(_) => Vec::new(),
+            };
+            for (key, bytes) in replies {
+                // a reply that cannot go out is asked for again by the next query
+                let _ = query.reply(key, bytes).wait();
+            }
+        })
+        .wait()
+        .map_err(FleetError::zenoh)
 }
 
 fn malformed(what: String) -> slamkit_slam::map_file::MapFileError {

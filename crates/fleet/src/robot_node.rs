@@ -51,6 +51,11 @@ pub struct RobotNodeConfig {
     /// Fraction of publications dropped on purpose, and the seed of the draws (tests of
     /// recovery: a dropped message is still stored and served to queries).
     pub loss: Option<(f64, u64)>,
+    /// A stretch of the log, `(from, length)` in log seconds after its first scan, through
+    /// which the robot is off the network: its Zenoh session closed, what it maps meanwhile
+    /// kept and sent to nobody, then a new session (tests of a robot out of Wi-Fi range that
+    /// comes back). A stretch past the log's end is waited out at the log's rate.
+    pub disconnect: Option<(f64, f64)>,
 }
 
 impl RobotNodeConfig {
@@ -73,6 +78,7 @@ impl RobotNodeConfig {
             store: out.join("updates.skmu"),
             merged_map: out.join("merged.skmap"),
             loss: None,
+            disconnect: None,
         }
     }
 }
@@ -91,6 +97,8 @@ pub struct RobotNode {
     last_status: Option<Instant>,
     started: Instant,
     scans_done: usize,
+    /// Times the robot left the network ([`RobotNodeConfig::disconnect`]: at most once).
+    disconnections: usize,
 }
 
 impl RobotNode {
@@ -113,6 +121,13 @@ impl RobotNode {
         }
         if !config.rate.is_finite() || config.rate < 0.0 {
             return Err(config_error(format!("rate {} must be >= 0", config.rate)));
+        }
+        if let Some((from, length)) = config.disconnect {
+            if !(from.is_finite() && length.is_finite() && from >= 0.0 && length > 0.0) {
+                return Err(config_error(format!(
+                    "disconnect from {from} s for {length} s: both must be finite, the length > 0"
+                )));
+            }
         }
         if let Some((p, _)) = config.loss {
             if !(0.0..1.0).contains(&p) {
@@ -150,6 +165,7 @@ impl RobotNode {
             last_status: None,
             started: Instant::now(),
             scans_done: 0,
+            disconnections: 0,
         })
     }
 
@@ -170,10 +186,12 @@ impl RobotNode {
     ) -> Result<bool, FleetError> {
         // the wall time and log time the pace counts from, once caught up with the store
         let mut pace: Option<(Instant, f64)> = None;
+        let first = log.scans.first().map_or(0.0, |s| s.timestamp);
         for scan in &log.scans {
             if stop.load(Ordering::Relaxed) {
                 return Ok(false);
             }
+            self.connect_as_due(scan.timestamp - first)?;
             let caught_up = self.outbox.sent() >= self.resumed_from;
             if caught_up && self.config.rate > 0.0 {
                 let (wall, t0) = *pace.get_or_insert((Instant::now(), scan.timestamp));
@@ -183,8 +201,7 @@ impl RobotNode {
                     if stop.load(Ordering::Relaxed) {
                         return Ok(false);
                     }
-                    self.status_if_due()?;
-                    self.merged.poll()?;
+                    self.network()?;
                     std::thread::sleep(NAP.min(due.saturating_duration_since(Instant::now())));
                 }
             }
@@ -196,9 +213,10 @@ impl RobotNode {
             self.last_update = Some(update);
             self.send(&due)?;
             if self.outbox.sent() >= self.resumed_from {
-                self.status_if_due()?;
+                self.network()?;
+            } else if self.publisher.online() {
+                self.merged.poll()?;
             }
-            self.merged.poll()?;
             self.scans_done += 1;
             progress(self.scans_done);
         }
@@ -207,9 +225,51 @@ impl RobotNode {
             None => Vec::new(),
         };
         self.send(&rest)?;
+        // a disconnection that outlasts the log is waited out at the log's pace
+        if let (Some((from, length)), Some(last)) = (self.config.disconnect, log.scans.last()) {
+            let left = from + length - (last.timestamp - first);
+            if !self.publisher.online() && left > 0.0 && self.config.rate > 0.0 {
+                let until = Instant::now() + Duration::from_secs_f64(left / self.config.rate);
+                while Instant::now() < until {
+                    if stop.load(Ordering::Relaxed) {
+                        return Ok(false);
+                    }
+                    std::thread::sleep(NAP.min(until.saturating_duration_since(Instant::now())));
+                }
+            }
+            self.connect_as_due(f64::INFINITY)?;
+        }
         self.last_status = None;
         self.status_if_due()?;
         Ok(true)
+    }
+
+    /// Leaves or rejoins the network as [`RobotNodeConfig::disconnect`] says for log time
+    /// `t` (seconds after the first scan).
+    fn connect_as_due(&mut self, t: f64) -> Result<(), FleetError> {
+        let Some((from, length)) = self.config.disconnect else {
+            return Ok(());
+        };
+        let away = t >= from && t < from + length;
+        if away && self.publisher.online() && self.disconnections == 0 {
+            self.publisher.disconnect()?;
+            self.disconnections += 1;
+        } else if !away && !self.publisher.online() {
+            let session = self.config.peer.open()?;
+            self.merged.reconnect(session.clone())?;
+            self.publisher.reconnect(session)?;
+            self.last_status = None;
+        }
+        Ok(())
+    }
+
+    /// The robot's status when due and the merged maps that came, while on the network.
+    fn network(&mut self) -> Result<(), FleetError> {
+        if self.publisher.online() {
+            self.status_if_due()?;
+            self.merged.poll()?;
+        }
+        Ok(())
     }
 
     /// After the log: keeps answering queries, sending its status every second and taking
@@ -220,8 +280,7 @@ impl RobotNode {
     /// written.
     pub fn serve(&mut self, stop: &AtomicBool) -> Result<(), FleetError> {
         while !stop.load(Ordering::Relaxed) {
-            self.status_if_due()?;
-            self.merged.poll()?;
+            self.network()?;
             std::thread::sleep(NAP);
         }
         Ok(())
@@ -301,6 +360,8 @@ impl RobotNode {
             "messages_stored": self.publisher.stored(),
             "messages_published": self.publisher.sent_messages(),
             "messages_dropped_on_purpose": self.publisher.dropped(),
+            "disconnected_log_seconds": self.config.disconnect,
+            "messages_held_back_while_disconnected": self.publisher.held_back(),
             "bytes_published": self.publisher.sent_bytes(),
             "update_bytes": update_bytes,
             "log_seconds": log_seconds,

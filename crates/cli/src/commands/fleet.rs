@@ -1,6 +1,7 @@
 //! `slamkit fleet robot|merger`: one robot of a fleet playing a log and publishing its map
 //! updates over Zenoh, and the merger (all of it in `slamkit_fleet::{RobotNode, MergerNode}`).
 
+use crate::commands::fleet_sim::FleetSim;
 use crate::output::{finish, progress_bar, stop_flag};
 use slamkit_fleet::{robot_node::ROBOT_FILES, MergerNode, MergerNodeConfig, PeerConfig};
 use slamkit_fleet::{RobotNode, RobotNodeConfig};
@@ -46,6 +47,10 @@ enum FleetCommand {
         /// Drop this fraction of publications on purpose (tests of recovery by query).
         #[arg(long)]
         loss: Option<f64>,
+        /// Leave the network (close the Zenoh session) FROM seconds of log time after the first
+        /// scan, for SECONDS of log time, then join again (tests of a robot out of range).
+        #[arg(long, value_name = "FROM,SECONDS", value_delimiter = ',')]
+        disconnect: Option<Vec<f64>>,
         /// Named profile of the robot (or a profile file `X.toml`): its `[lidar]` settings,
         /// as `slamkit lidar --profile` takes them.
         #[arg(long)]
@@ -55,12 +60,46 @@ enum FleetCommand {
         #[arg(long)]
         config: Option<PathBuf>,
     },
+    /// Simulated ground robots, each a `fleet robot` process playing its own stretch of the
+    /// world's drive path out and back, and a merger process, all on 127.0.0.1; writes the
+    /// robots' and merger's folders and report.json with the errors against the truth.
+    Sim {
+        /// World: `small`, `large`, `office`, or a TOML world file.
+        #[arg(long)]
+        world: String,
+        /// Robots in the fleet.
+        #[arg(long, default_value_t = 3)]
+        robots: usize,
+        /// Seed of the robots' sensor noise.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Fraction of its publications each robot's sender drops.
+        #[arg(long)]
+        loss: Option<f64>,
+        /// Simulated seconds the last robot spends off the network, from a quarter of its run.
+        #[arg(long, value_name = "SECONDS")]
+        disconnect: Option<f64>,
+        /// Kill robot 0 at 40 % of its run and start it again; kill the merger at 70 % and
+        /// start a new one.
+        #[arg(long)]
+        restart: bool,
+        /// Simulated seconds played per wall second.
+        #[arg(long, default_value_t = 10.0)]
+        rate: f64,
+        /// Seconds between the merger's merges while updates arrive.
+        #[arg(long, default_value_t = 2.0)]
+        merge_every: f64,
+    },
     /// Merges the robots' maps as updates arrive, publishes each merge on
     /// `slamkit/<fleet>/merged/{map,report}`; on Ctrl-C writes the last as `map merge` does.
     Merger {
         /// Seconds between merges while updates arrive.
         #[arg(long, default_value_t = 10.0)]
         merge_every: f64,
+        /// TOML file with merge settings laid over the defaults (the fields report.json shows
+        /// under `config`, such as `[places] spacing_m = 1.0`).
+        #[arg(long)]
+        config: Option<PathBuf>,
     },
 }
 
@@ -77,6 +116,7 @@ pub fn run(args: &FleetArgs) -> anyhow::Result<()> {
             robot,
             rate,
             loss,
+            disconnect,
             profile,
             config,
         } => {
@@ -90,6 +130,11 @@ pub fn run(args: &FleetArgs) -> anyhow::Result<()> {
             let slam = LidarSlam::new(settings, Default::default())?;
             let mut config = RobotNodeConfig::new(&args.fleet, robot, peer, out);
             (config.rate, config.loss) = (*rate, loss.map(|p| (p, 1)));
+            config.disconnect = match disconnect.as_deref() {
+                None => None,
+                Some(&[from, seconds]) => Some((from, seconds)),
+                Some(other) => anyhow::bail!("--disconnect {other:?}: give FROM,SECONDS"),
+            };
             let mut node = RobotNode::start(config, slam)?;
             let bar = progress_bar(log.scans.len() as u64, "robot");
             let done = node.play(&log, &stop, |n| bar.set_position(n as u64))?;
@@ -105,9 +150,37 @@ pub fn run(args: &FleetArgs) -> anyhow::Result<()> {
             node.serve(&stop)?;
             write(&node)
         }
-        FleetCommand::Merger { merge_every } => {
+        FleetCommand::Sim {
+            world,
+            robots,
+            seed,
+            loss,
+            disconnect,
+            restart,
+            rate,
+            merge_every,
+        } => {
+            let sim = FleetSim {
+                world: world.clone(),
+                robots: *robots,
+                seed: *seed,
+                loss: *loss,
+                disconnect_s: *disconnect,
+                restart: *restart,
+                rate: *rate,
+                merge_every_s: *merge_every,
+                fleet: args.fleet.clone(),
+                out: out.clone(),
+            };
+            crate::commands::fleet_sim::run(&sim, &stop)
+        }
+        FleetCommand::Merger {
+            merge_every,
+            config: merge_config,
+        } => {
             let mut config = MergerNodeConfig::new(&args.fleet, peer);
             config.merge_every_s = *merge_every;
+            config.merge = crate::commands::map::merge_config(merge_config.as_deref())?;
             let mut node = MergerNode::start(config)?;
             node.run(&stop)?;
             let folder = OutputFolder::create(out, MERGE_FILES)?;

@@ -45,10 +45,27 @@ enum MapCommand {
         /// The `.skmap` files (two or more); each is named by its file stem.
         #[arg(required = true, num_args = 2..)]
         files: Vec<PathBuf>,
+        /// TOML file with merge settings laid over the defaults (the fields report.json shows
+        /// under `config`, such as `[places] spacing_m = 1.0`).
+        #[arg(long)]
+        config: Option<PathBuf>,
         /// Output folder.
         #[arg(long)]
         out: PathBuf,
     },
+}
+
+/// The merge settings: the defaults, with those of the TOML file `path` laid over them.
+pub fn merge_config(path: Option<&Path>) -> anyhow::Result<MergeConfig> {
+    let Some(path) = path else {
+        return Ok(MergeConfig::default());
+    };
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let config: MergeConfig =
+        toml::from_str(&text).with_context(|| format!("merge settings in {}", path.display()))?;
+    config.validate()?;
+    Ok(config)
 }
 
 /// Runs `slamkit map`.
@@ -56,7 +73,7 @@ pub fn run(args: &MapArgs) -> anyhow::Result<()> {
     match &args.command {
         MapCommand::Info { file, json } => info(file, *json),
         MapCommand::Export { file, out } => export(file, out),
-        MapCommand::Merge { files, out } => merge(files, out),
+        MapCommand::Merge { files, config, out } => merge(files, config.as_deref(), out),
     }
 }
 
@@ -91,7 +108,7 @@ fn export(file: &Path, out: &Path) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn merge(files: &[PathBuf], out: &Path) -> anyhow::Result<()> {
+fn merge(files: &[PathBuf], config: Option<&Path>, out: &Path) -> anyhow::Result<()> {
     let start = std::time::Instant::now();
     let mut maps = Vec::with_capacity(files.len());
     for file in files {
@@ -99,7 +116,7 @@ fn merge(files: &[PathBuf], out: &Path) -> anyhow::Result<()> {
         maps.push(map);
     }
     let names = robot_names(files);
-    let config = MergeConfig::default();
+    let config = merge_config(config)?;
     let outcome = merge_maps(&maps, &config)?;
     let folder = OutputFolder::create(out, MERGE_FILES)?;
     let mut report = write_merge(&outcome, &maps, &names, "map merge", folder.path())?;

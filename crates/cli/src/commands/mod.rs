@@ -4,6 +4,7 @@ pub mod bag;
 pub mod demo;
 pub mod eval;
 pub mod fleet;
+pub mod fleet_sim;
 pub mod lidar;
 pub mod lidar_drone;
 pub mod lidar_mcl;
