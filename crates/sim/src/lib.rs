@@ -69,7 +69,7 @@ pub use odometry::{OdometryConfig, OdometrySimulator};
 pub use range_finder::{RangeFinderConfig, RangeReading};
 pub use relations::relation_pairs;
 pub use scene::{Hit, Scene};
-pub use simulation::{sample_times, LidarRun, RobotKind, SimConfig, Simulation, Stream};
+pub use simulation::{sample_times, LidarRun, RobotKind, RobotPath, SimConfig, Simulation, Stream};
 pub use stereo::{StereoCameraConfig, StereoFrame};
 pub use texture::{Pattern, Texture};
 pub use world::{World, BUILTIN_WORLDS};

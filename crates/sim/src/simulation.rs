@@ -35,6 +35,43 @@ pub enum RobotKind {
     DiffDrive,
 }
 
+/// The path a robot follows through its world.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RobotPath {
+    /// The world's `flight_path` (drone) or `drive_path` (ground robot).
+    #[default]
+    Default,
+    /// This many laps of the world's `drive_loop` (ground robot): the same places seen again,
+    /// for loop closing. Named `loopN` (`loop3`: three laps).
+    Laps(usize),
+}
+
+impl std::str::FromStr for RobotPath {
+    type Err = SimError;
+
+    /// `default` or `loopN` (N ≥ 1 laps).
+    ///
+    /// ```
+    /// use slamkit_sim::RobotPath;
+    /// assert_eq!("loop3".parse::<RobotPath>()?, RobotPath::Laps(3));
+    /// assert_eq!("default".parse::<RobotPath>()?, RobotPath::Default);
+    /// assert!("loop0".parse::<RobotPath>().is_err() && "spiral".parse::<RobotPath>().is_err());
+    /// # Ok::<(), slamkit_sim::SimError>(())
+    /// ```
+    fn from_str(name: &str) -> Result<Self, SimError> {
+        if name == "default" {
+            return Ok(Self::Default);
+        }
+        match name.strip_prefix("loop").map(str::parse::<usize>) {
+            Some(Ok(laps)) if laps >= 1 => Ok(Self::Laps(laps)),
+            _ => Err(SimError::InvalidConfig(format!(
+                "path {name:?}: `default` or `loopN` (N ≥ 1 laps of the world's drive_loop)"
+            ))),
+        }
+    }
+}
+
 /// Everything about a simulated run but the world and the seed.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -147,6 +184,45 @@ impl Simulation {
             }
         };
         Self::with_motion(world, motion, config, seed)
+    }
+
+    /// The configured robot following `path` in `world`.
+    ///
+    /// ```
+    /// use slamkit_sim::{RobotKind, RobotPath, SimConfig, Simulation, World};
+    /// let config = SimConfig { robot: RobotKind::DiffDrive, ..SimConfig::default() };
+    /// let office = World::builtin("office")?;
+    /// let path: RobotPath = "loop3".parse()?;
+    /// let sim = Simulation::on_path(office, config, path, 1)?;
+    /// // three laps end where they started
+    /// let (start, end) = (sim.state_at(0.0), sim.state_at(sim.duration_s()));
+    /// let moved = end.world_from_base.translation.vector - start.world_from_base.translation.vector;
+    /// assert!(moved.norm() < 1e-9 && sim.duration_s() > 120.0);
+    /// # Ok::<(), slamkit_sim::SimError>(())
+    /// ```
+    ///
+    /// # Errors
+    /// [`SimError::InvalidConfig`] for laps of a drone (a loop is a drive), of a world without
+    /// a `drive_loop`, or bad sensor settings.
+    pub fn on_path(
+        world: World,
+        config: SimConfig,
+        path: RobotPath,
+        seed: u64,
+    ) -> Result<Self, SimError> {
+        match path {
+            RobotPath::Default => Self::new(world, config, seed),
+            RobotPath::Laps(laps) => {
+                if config.robot != RobotKind::DiffDrive {
+                    return Err(SimError::InvalidConfig(
+                        "a loop path is driven by the ground robot (robot diff_drive)".into(),
+                    ));
+                }
+                let waypoints = world.drive_laps(laps)?;
+                let motion = WaypointMotion::diff_drive(&waypoints, &config.diff_drive)?;
+                Self::with_motion(world, motion, config, seed)
+            }
+        }
     }
 
     /// A robot following a given motion (for paths other than the world's default).
@@ -396,16 +472,42 @@ mod tests {
                     RobotKind::Drone => (0.12, 0.0),
                     RobotKind::DiffDrive => (0.15, 0.1),
                 };
-                for t in sim.sample_times(2.0) {
-                    let p = sim.state_at(t).world_from_base.translation.vector;
-                    let centre = Point3::new(p.x, p.y, p.z + lift);
-                    assert!(
-                        !sim.scene.collides(&centre, clearance),
-                        "{name} {robot:?} at {t} s: {p}"
-                    );
-                }
+                assert_collision_free(&sim, clearance, lift);
             }
         }
+        let config = SimConfig {
+            robot: RobotKind::DiffDrive,
+            ..SimConfig::default()
+        };
+        let office = World::builtin("office").unwrap();
+        let laps = Simulation::on_path(office, config, RobotPath::Laps(1), 0).unwrap();
+        assert_collision_free(&laps, 0.15, 0.1);
+    }
+
+    /// Samples `sim`'s run at 2 Hz: a sphere of `clearance` \[m\] `lift` above the base never
+    /// touches the scene.
+    fn assert_collision_free(sim: &Simulation, clearance: f64, lift: f64) {
+        for t in sim.sample_times(2.0) {
+            let p = sim.state_at(t).world_from_base.translation.vector;
+            let centre = Point3::new(p.x, p.y, p.z + lift);
+            let (world, robot) = (&sim.world.name, sim.config.robot);
+            let collides = sim.scene.collides(&centre, clearance);
+            assert!(!collides, "{world} {robot:?} at {t} s: {p}");
+        }
+    }
+
+    #[test]
+    fn loop_paths_need_a_ground_robot_and_a_world_with_a_loop() {
+        let office = World::builtin("office").unwrap();
+        let drone = Simulation::on_path(office, SimConfig::default(), RobotPath::Laps(3), 0);
+        assert!(drone.unwrap_err().to_string().contains("ground robot"));
+        let config = SimConfig {
+            robot: RobotKind::DiffDrive,
+            ..SimConfig::default()
+        };
+        let small = World::builtin("small").unwrap();
+        let err = Simulation::on_path(small, config, RobotPath::Laps(3), 0).unwrap_err();
+        assert!(err.to_string().contains("no drive_loop"), "{err}");
     }
 
     #[test]

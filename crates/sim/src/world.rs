@@ -42,6 +42,11 @@ pub struct World {
     pub flight_path: Vec<[f64; 4]>,
     /// Default ground-robot drive: waypoints `\[x, y\]` \[m\] (obstacle-free at floor level).
     pub drive_path: Vec<[f64; 2]>,
+    /// A closed ground-robot drive for loop closing (`--path loopN`): waypoints `\[x, y\]`
+    /// \[m\] driven in order and back to the first ([`World::drive_laps`]); empty when the
+    /// world has none.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub drive_loop: Vec<[f64; 2]>,
     /// Default navigation goal `\[x, y\]` \[m\].
     pub nav_goal: [f64; 2],
     /// Walls inside the room.
@@ -198,6 +203,38 @@ impl World {
             && (0.0..=self.height_m).contains(&z)
     }
 
+    /// The waypoints of `laps` times round the world's `drive_loop`, starting and ending at its
+    /// first point.
+    ///
+    /// ```
+    /// let office = slamkit_sim::World::builtin("office")?;
+    /// let path = office.drive_laps(3)?;
+    /// assert_eq!(path.len(), 3 * office.drive_loop.len() + 1);
+    /// assert_eq!((path[0], path[path.len() - 1]), (office.drive_loop[0], office.drive_loop[0]));
+    /// # Ok::<(), slamkit_sim::SimError>(())
+    /// ```
+    ///
+    /// # Errors
+    /// [`SimError::InvalidConfig`] when `laps` is 0 or the world has no `drive_loop`.
+    pub fn drive_laps(&self, laps: usize) -> Result<Vec<[f64; 2]>, SimError> {
+        if laps == 0 {
+            return Err(SimError::InvalidConfig(
+                "a loop drive needs 1 lap or more".into(),
+            ));
+        }
+        if self.drive_loop.is_empty() {
+            return Err(SimError::InvalidConfig(format!(
+                "world {} has no drive_loop",
+                self.name
+            )));
+        }
+        let mut path: Vec<[f64; 2]> = (0..laps)
+            .flat_map(|_| self.drive_loop.iter().copied())
+            .collect();
+        path.push(self.drive_loop[0]);
+        Ok(path)
+    }
+
     /// Checks sizes, heights and that every path point and the goal lie in the room.
     fn validate(&self) -> Result<(), String> {
         if !(positive(self.size_m[0]) && positive(self.size_m[1]) && positive(self.height_m)) {
@@ -233,10 +270,18 @@ impl World {
                 return Err(format!("flight_path[{i}] {w:?} is outside the room"));
             }
         }
-        for (i, w) in self.drive_path.iter().enumerate() {
-            if !self.contains(w[0], w[1], 0.0) {
-                return Err(format!("drive_path[{i}] {w:?} is outside the room"));
+        for (name, path) in [
+            ("drive_path", &self.drive_path),
+            ("drive_loop", &self.drive_loop),
+        ] {
+            for (i, w) in path.iter().enumerate() {
+                if !self.contains(w[0], w[1], 0.0) {
+                    return Err(format!("{name}[{i}] {w:?} is outside the room"));
+                }
             }
+        }
+        if (1..3).contains(&self.drive_loop.len()) {
+            return Err("drive_loop needs at least 3 waypoints".into());
         }
         if !self.contains(self.nav_goal[0], self.nav_goal[1], 0.0) {
             return Err(format!("nav_goal {:?} is outside the room", self.nav_goal));

@@ -8,6 +8,9 @@
 //! documents them) and give the drone's layered SLAM the same input as `slamkit demo` on the
 //! same world and seed.
 //!
+//! `--path loopN` drives the ground robot N times round the world's closed `drive_loop` (the
+//! same places seen again, for `slamkit vo --slam`'s loop closing).
+//!
 //! `--duration` cuts the run short (camera folders hold 30 frames a second of run, about
 //! 1.5 MB a frame). The same world, sensors, robot, duration and seed give the same files byte
 //! for byte.
@@ -18,7 +21,7 @@ use serde_json::json;
 use slamkit_core::StageTimings;
 use slamkit_io::output_folder::OutputFolder;
 use slamkit_sim::recording::{counts_by_sensor, write_recording, Sensor, KITTI_FOLDER, TUM_FOLDER};
-use slamkit_sim::{RobotKind, SimConfig, Simulation, World};
+use slamkit_sim::{RobotKind, RobotPath, SimConfig, Simulation, World};
 use slamkit_slam::profile::settings;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -36,6 +39,10 @@ pub struct SimArgs {
     /// path.
     #[arg(long, value_enum, default_value = "drone")]
     pub robot: Robot,
+    /// The path: `default` (the world's flight or drive path) or `loopN`, N laps of the
+    /// world's closed drive (`office` has one; with `--robot diff-drive`), for loop closing.
+    #[arg(long, default_value = "default")]
+    pub path: String,
     /// Simulate only the first SECONDS of the run.
     #[arg(long, value_name = "SECONDS")]
     pub duration: Option<f64>,
@@ -89,7 +96,8 @@ pub fn run(args: &SimArgs) -> anyhow::Result<()> {
             args.config.as_deref(),
         )?
     };
-    let sim = Simulation::new(world, config.clone(), args.seed)?;
+    let path: RobotPath = args.path.parse()?;
+    let sim = Simulation::on_path(world, config.clone(), path, args.seed)?;
     let duration_s = match args.duration {
         Some(d) if d.is_finite() && d >= 0.0 => d.min(sim.duration_s()),
         Some(d) => anyhow::bail!("--duration {d}: must be a number of seconds, 0 or more"),
@@ -106,6 +114,7 @@ pub fn run(args: &SimArgs) -> anyhow::Result<()> {
             "world": args.world,
             "sensors": args.sensors,
             "robot": format!("{:?}", args.robot),
+            "path": args.path,
             "seed": args.seed,
         },
         "config": config,
