@@ -620,11 +620,11 @@ mod tests {
         for (t, b) in truth.iter().zip(&bundle.camera_from_world) {
             assert!(t.rotation.angle_to(&b.rotation) < 1e-7);
         }
+        // every point some keyframe sees (a point no keyframe sees has nothing to move it)
         let worst_point = bundle
-            .points
+            .observations
             .iter()
-            .zip(&points)
-            .map(|(a, b)| (a - b).norm())
+            .map(|o| (bundle.points[o.point] - points[o.point]).norm())
             .fold(0.0, f64::max);
         assert!(worst_point < 1e-6, "{worst_point}");
         assert_eq!(summary.outliers, 0);
