@@ -34,6 +34,7 @@
 //! metres), [`VoConfig::frontend`] and, for a colour camera whose depth is not registered to it,
 //! [`VoConfig::register_depth`]; the rest of [`VoConfig`] is advanced.
 
+mod bundle_thread;
 mod in_map;
 pub mod keyframes;
 mod loop_closing;
@@ -66,6 +67,7 @@ use crate::map_file;
 use crate::profile::layout_profile;
 use crate::session::{MapChange, Session, TrackingStatus, Update};
 use crate::SlamError;
+use bundle_thread::BundleThread;
 use in_map::MapLocaliser;
 use loop_closing::Joined;
 use loop_thread::LoopThread;
@@ -125,6 +127,8 @@ pub struct VisualSlam {
     loops: Option<LoopThread>,
     /// The saved map the session localises in ([`Self::localising_in`]).
     in_map: Option<MapLocaliser>,
+    /// The local bundle adjustment on its thread (`local_map.bundle.enabled`).
+    bundles: Option<BundleThread>,
 }
 
 /// Frame counters of a [`VisualSlam`] session.
@@ -211,8 +215,15 @@ impl VisualSlam {
             .register_depth
             .as_ref()
             .map_or(Pose3::identity(), |r| r.color_from_depth());
+        let mut odometry = Odometry::new(config, world_from_camera * tracked_from_camera.inverse());
+        let bundles = (config.mode == TrackingMode::LocalMap && config.local_map.bundle.enabled)
+            .then(BundleThread::start)
+            .transpose()?;
+        if bundles.is_some() {
+            odometry.hand_off_bundles();
+        }
         Ok(Self {
-            odometry: Odometry::new(config, world_from_camera * tracked_from_camera.inverse()),
+            odometry,
             point_map: PointMapper::start(PointMapping::default(), config.voxel_map.clone())?,
             config: config.clone(),
             rig,
@@ -230,6 +241,7 @@ impl VisualSlam {
                 .then(|| LoopThread::start(&config.loop_closure))
                 .transpose()?,
             in_map: None,
+            bundles,
         })
     }
 
@@ -335,6 +347,9 @@ impl VisualSlam {
             }
             Err(reason) => (self.odometry.skip(reason), Default::default(), None),
         };
+        if let Some(bundles) = &mut self.bundles {
+            bundles.exchange(&mut self.odometry);
+        }
         if matches!(status, FrameStatus::Initialised { .. }) && joined == Joined::Tracked {
             joined = Joined::Restarted;
         }
@@ -551,6 +566,9 @@ impl VisualSlam {
         let mut timings = self.timings;
         if let Some(loops) = self.loops {
             timings.merge(&loops.finish()?);
+        }
+        if let Some(bundles) = self.bundles {
+            timings.merge(&bundles.finish()?);
         }
         let point_map = self.point_map.finish()?.map(|(map, map_timings)| {
             timings.merge(&map_timings);

@@ -14,6 +14,7 @@
 //!   reprojection error.
 //! * [`odometry`]: frame-to-frame or local-map tracking, failed frames keeping the reference.
 //! * [`local_map`]: features of the recent key frames, positions averaged over observations.
+//! * [`local_ba`]: local bundle adjustment of the recent key frames and their points.
 //! * [`covisibility`]: map points with their observations, the keyframes' covisibility graph.
 //! * [`place_index`]: the online place index over binary descriptors (HBST).
 //! * [`loop_closure`]: loop candidates, temporal consistency, geometric verification.
@@ -32,6 +33,7 @@ pub mod covisibility;
 pub mod depth;
 pub mod error;
 pub mod frame;
+pub mod local_ba;
 pub mod local_map;
 pub mod loop_closure;
 pub mod map_tracking;
@@ -48,5 +50,5 @@ pub mod voxel_map;
 pub use config::{FrontendKind, TrackingMode, VoConfig};
 pub use error::VoError;
 pub use metrics::{evaluate, VoMetrics};
-pub use odometry::{FailReason, FrameStatus, Odometry};
+pub use odometry::{FailReason, FrameStatus, LocalBundle, Odometry};
 pub use voxel_map::VoxelMap;

@@ -27,6 +27,7 @@ use slamkit_vision::matching::match_descriptors_within;
 use slamkit_vision::{Descriptor, MatchConfig};
 
 use crate::error::VoError;
+use crate::local_ba::LocalBaConfig;
 
 /// Local map settings.
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -50,6 +51,8 @@ pub struct LocalMapConfig {
     /// this distance of it with a descriptor within the matching distance, instead of
     /// becoming a new landmark \[px\].
     pub merge_radius_px: f64,
+    /// Local bundle adjustment of the recent key frames and their landmarks.
+    pub bundle: LocalBaConfig,
 }
 
 impl Default for LocalMapConfig {
@@ -62,6 +65,7 @@ impl Default for LocalMapConfig {
             recovery_radius_px: 120.0,
             min_window_matches: 50,
             merge_radius_px: 3.0,
+            bundle: LocalBaConfig::default(),
         }
     }
 }
@@ -91,7 +95,7 @@ impl LocalMapConfig {
                 return Err(VoError::config(field, r, "must be finite and > 0"));
             }
         }
-        Ok(())
+        self.bundle.validate()
     }
 }
 
@@ -223,6 +227,17 @@ impl LocalMap {
         if o.descriptor.is_some() {
             l.descriptor = o.descriptor;
         }
+        true
+    }
+
+    /// Moves landmark `id` to `position` (a refinement), keeping the weight its observations
+    /// gave it, so that later observations average with it as before; false when `id` left the
+    /// map.
+    pub fn set_position(&mut self, id: u64, position: &Point3<f64>) -> bool {
+        let Some(l) = self.landmarks.get_mut(&id) else {
+            return false;
+        };
+        l.weighted_sum = position.coords * l.weight;
         true
     }
 

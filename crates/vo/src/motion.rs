@@ -397,7 +397,7 @@ type Residual = (Vector3<f64>, Matrix3x6<f64>);
 
 /// Stereo projection `(u, v, bf/z)` of camera-frame `q` and its Jacobian `∂/∂q`; `None`
 /// behind the camera.
-fn project(cam: &StereoCamera, q: &Point3<f64>) -> Option<(Vector3<f64>, Matrix3<f64>)> {
+pub(crate) fn project(cam: &StereoCamera, q: &Point3<f64>) -> Option<(Vector3<f64>, Matrix3<f64>)> {
     if q.z.is_nan() || q.z <= 1e-6 {
         return None;
     }
@@ -447,7 +447,7 @@ fn symmetric_residuals(
 
 /// Covariance \[px²\] of the observation `(u, v, bf/z)` of camera-frame point `p`: the pixel
 /// noise in u and v, the depth noise turned into disparity, `σ_d = bf σ_z / z²`.
-fn observation_covariance(
+pub(crate) fn observation_covariance(
     cam: &StereoCamera,
     noise: &MeasurementNoise,
     p: &Point3<f64>,

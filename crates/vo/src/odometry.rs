@@ -8,6 +8,8 @@
 //! reference was overwritten by the bad frame so one glitch broke tracking. Only after
 //! `max_consecutive_failures` failures in a row does tracking restart from the current frame.
 
+use std::collections::VecDeque;
+
 use nalgebra::{Point2, Point3};
 use serde::Serialize;
 use slamkit_core::Pose3;
@@ -18,7 +20,7 @@ use slamkit_vision::{Descriptor, DescriptorMatch, KltPyramid};
 use crate::config::{FrontendKind, TrackingMode, VoConfig};
 use crate::frame::PreparedFrame;
 use crate::local_map::{project, LocalMap, MergeConfig, Observation, Seen};
-use crate::motion::{estimate_motion, Correspondence, MotionFailure};
+use crate::motion::{estimate_motion, Correspondence, MotionFailure, StereoCamera};
 use crate::spacing::SpacingGrid;
 
 /// A reference feature matched in the current frame: the descriptor to refresh it with, its
@@ -116,6 +118,15 @@ pub struct Odometry {
     velocity: Pose3,
     /// Index of the last tracked (or initialised) frame.
     last_index: Option<usize>,
+    /// The newest key frames, oldest first, for the local bundle adjustment.
+    recent: VecDeque<KeyframeView>,
+    /// The local bundle adjustment due after the last key frame, its camera.
+    bundle_due: Option<StereoCamera>,
+    /// Run the local bundle adjustment within [`Odometry::track`] (false: the caller takes
+    /// it with [`Odometry::take_bundle`] and runs it elsewhere).
+    bundle_inline: bool,
+    /// Corrections applied ([`Odometry::correct`]): a bundle taken before one is stale.
+    epoch: usize,
 }
 
 impl Odometry {
@@ -131,6 +142,10 @@ impl Odometry {
             keyframes: 0,
             velocity: Pose3::identity(),
             last_index: None,
+            recent: VecDeque::new(),
+            bundle_due: None,
+            bundle_inline: true,
+            epoch: 0,
         }
     }
 
@@ -173,6 +188,10 @@ impl Odometry {
             r.world_from_camera = renormalised(correction * r.world_from_camera);
         }
         self.map.transform(&correction);
+        for k in &mut self.recent {
+            k.world_from_camera = renormalised(correction * k.world_from_camera);
+        }
+        self.epoch += 1;
     }
 
     /// True after `max_consecutive_failures` failed frames in a row: the next frame starts
@@ -474,6 +493,7 @@ impl Odometry {
             pyramid: frame.pyramid,
             features,
         });
+        self.adjust_inline();
     }
 
     /// Appends the frame's lifted features to `features`: ORB features not among the kept
@@ -592,6 +612,10 @@ impl Odometry {
                 f.landmark = Some(id);
             }
             self.keyframes += 1;
+            if lm.bundle.enabled {
+                let cam = frame.stereo_camera(&self.config);
+                self.add_recent_keyframe(features, cam);
+            }
         }
         let lm = &self.config.local_map;
         self.map.prune(index, lm.window_frames, lm.max_landmarks);
@@ -604,5 +628,9 @@ fn renormalised(mut pose: Pose3) -> Pose3 {
     pose
 }
 
+mod local_bundle;
 #[cfg(test)]
 mod tests;
+
+use local_bundle::KeyframeView;
+pub use local_bundle::LocalBundle;
