@@ -14,6 +14,8 @@
 //!   them (the camera input of the vo and nav nodes reads and pairs on threads of its own).
 //! * [`nav_node`]: `slamkit ros2 nav` (a ground robot with an RGB-D camera, driven to a goal
 //!   on `/cmd_vel`).
+//! * [`sim_node`]: `slamkit sim --ros2` (the simulated robot of `slamkit nav`, its camera
+//!   published live, driven by `/cmd_vel`).
 //! * [`dds`]: what every node does with DDS (discovery, QoS, readers, the pose writers).
 //! * [`params`]: the ROS-style parameter file (`--params FILE.yaml`).
 //! * [`msgs`], [`grid_msg`]: the messages, and the occupancy grid as `nav_msgs/OccupancyGrid`.
@@ -32,12 +34,14 @@ pub mod nav_node;
 pub mod pairing;
 pub mod params;
 pub mod rgbd_pairing;
+pub mod sim_node;
 pub mod vo_node;
 pub mod vo_run;
 
 pub use lidar_node::{run_lidar_node, LidarNodeConfig, LidarNodeRun, NodeMode, NodeStats};
 pub use lidar_run::{LidarNodeRequest, LidarNodeSetup};
 pub use nav_node::{run_nav_node, NavNodeConfig, NavNodeRun, NavNodeStats};
+pub use sim_node::{run_sim_node, SimNodeConfig, SimNodeStats};
 pub use vo_node::{run_vo_node, VoNodeConfig, VoNodeRun, VoNodeStats};
 pub use vo_run::{VoNodeRequest, VoNodeSetup};
 

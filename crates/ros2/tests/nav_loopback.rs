@@ -19,7 +19,7 @@ use slamkit_core::observation::{Observation, RgbdFrame};
 use slamkit_core::Pose3;
 use slamkit_ros2::dds::{latched_qos, reliable_qos, topic, Discovery};
 use slamkit_ros2::msgs::{self, Header, Time};
-use slamkit_ros2::{run_nav_node, NavNodeConfig};
+use slamkit_ros2::{run_nav_node, run_sim_node, NavNodeConfig, SimNodeConfig};
 use slamkit_sim::{GroundRobot, World};
 use slamkit_slam::ground_robot::closed_loop::NavLoopConfig;
 use slamkit_slam::ground_robot::MountedCamera;
@@ -45,7 +45,7 @@ fn the_nav_node_drives_the_simulated_robot_over_loopback() {
     let start: Isometry2<f64> = robot.truth();
     let goal = start.inverse() * goal_world;
     let discovery = Discovery {
-        domain_id: 100 + (std::process::id() % 120) as u16,
+        domain_id: 100 + (std::process::id() % 60) as u16,
         localhost_only: true,
     };
     let mut config = NavNodeConfig::default();
@@ -274,4 +274,84 @@ fn the_nav_node_drives_the_simulated_robot_over_loopback() {
         assert!(map.data.contains(&0) && map.data.contains(&100));
         assert_eq!(direct.grid().width(), map.info.width as usize);
     });
+}
+
+/// `slamkit sim --ros2`: the robot's camera comes out (at its rate, or as fast as it renders),
+/// and a constant command on
+/// `/cmd_vel` drives it straight ahead by speed × period for every period it was fresh.
+#[test]
+fn the_simulated_robot_publishes_its_camera_and_drives_by_cmd_vel() {
+    let loop_config = NavLoopConfig::default();
+    let world = World::builtin("office").unwrap();
+    let mut robot = GroundRobot::new(world, &loop_config.sim, 1).unwrap();
+    let start = robot.truth();
+    let discovery = Discovery {
+        domain_id: 160 + (std::process::id() % 60) as u16,
+        localhost_only: true,
+    };
+    let config = SimNodeConfig {
+        discovery,
+        duration_s: Some(2.0),
+        ..SimNodeConfig::default()
+    };
+    let stop = AtomicBool::new(false);
+    let speed = 0.2;
+    let (stats, images) = std::thread::scope(|scope| {
+        let sim = scope.spawn(|| run_sim_node(&config, &mut robot, &stop));
+        let mut ros = discovery.node("driver").unwrap();
+        let twist = ("geometry_msgs", "Twist");
+        let cmd = slamkit_ros2::dds::advertise::<msgs::Twist>(
+            &mut ros,
+            "/cmd_vel",
+            twist,
+            &reliable_qos(10),
+        )
+        .unwrap();
+        let image = ("sensor_msgs", "Image");
+        let qos = slamkit_ros2::dds::sensor_qos();
+        let colour =
+            slamkit_ros2::dds::subscribe::<msgs::Image>(&mut ros, &config.rgb_topic, image, &qos)
+                .unwrap();
+        let mut images = Vec::new();
+        let mut command = msgs::Twist::default();
+        command.linear.x = speed;
+        while !sim.is_finished() {
+            let _ = cmd.publish(command);
+            while let Ok(Some((m, _))) = colour.take() {
+                images.push((m.width, m.height, m.encoding, m.data.len()));
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        (sim.join().unwrap().unwrap(), images)
+    });
+    println!(
+        "{} frames published, {} received, {} commands, {} steps driven, {} late",
+        stats.frames_published,
+        images.len(),
+        stats.commands_received,
+        stats.steps_driven,
+        stats.late_frames
+    );
+    // 2 s at 10 Hz at most: a frame takes longer to render than its period on a loaded
+    // machine (then counted late)
+    let frames = stats.frames_published;
+    assert!((3..=21).contains(&frames), "{frames}");
+    assert!(stats.late_frames + 20 >= frames);
+    assert!(images.len() * 2 >= frames, "{} images", images.len());
+    for (w, h, encoding, bytes) in &images {
+        assert_eq!(
+            (*w, *h, encoding.as_str(), *bytes),
+            (640, 480, "rgb8", 640 * 480 * 3)
+        );
+    }
+    assert!(stats.steps_driven >= 1, "{}", stats.steps_driven);
+    assert_eq!(stats.blocked_steps, 0);
+    let driven = speed * 0.1 * stats.steps_driven as f64;
+    let moved = start.inverse() * robot.truth();
+    assert!(
+        (moved.translation.x - driven).abs() < 1e-9,
+        "{moved:?} for {driven} m"
+    );
+    assert!(moved.translation.y.abs() < 1e-9 && moved.rotation.angle().abs() < 1e-12);
+    assert_eq!(stats.truth.poses.len(), stats.frames_published);
 }

@@ -148,7 +148,7 @@ pub fn run(args: &Ros2Args) -> anyhow::Result<()> {
 
 /// The discovery the environment asks for (`ROS_DOMAIN_ID`, `ROS_LOCALHOST_ONLY`,
 /// `ROS_AUTOMATIC_DISCOVERY_RANGE`).
-fn discovery() -> anyhow::Result<Discovery> {
+pub(crate) fn discovery() -> anyhow::Result<Discovery> {
     let var = |name| std::env::var(name).ok();
     Ok(Discovery::from_env(
         var("ROS_DOMAIN_ID").as_deref(),
