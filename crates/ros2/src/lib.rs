@@ -11,8 +11,12 @@
 //! * [`vo_node`]: `slamkit ros2 vo` (an RGB-D camera such as a RealSense).
 //! * [`vo_run`]: its settings and session from a request, its output files and report.
 //! * [`rgbd_pairing`]: live colour and depth images paired by stamp, as the bag reader pairs
-//!   them.
-//! * [`dds`]: what both nodes do with DDS (discovery, QoS, readers, the pose writers).
+//!   them (the camera input of the vo and nav nodes reads and pairs on threads of its own).
+//! * [`nav_node`]: `slamkit ros2 nav` (a ground robot with an RGB-D camera, driven to a goal
+//!   on `/cmd_vel`).
+//! * [`sim_node`]: `slamkit sim --ros2` (the simulated robot of `slamkit nav`, its camera
+//!   published live, driven by `/cmd_vel`).
+//! * [`dds`]: what every node does with DDS (discovery, QoS, readers, the pose writers).
 //! * [`params`]: the ROS-style parameter file (`--params FILE.yaml`).
 //! * [`msgs`], [`grid_msg`]: the messages, and the occupancy grid as `nav_msgs/OccupancyGrid`.
 //!
@@ -20,19 +24,24 @@
 //! on the domain's ports), as every ROS 2 node's, or this machine only over `127.0.0.1` when
 //! asked (`ROS_LOCALHOST_ONLY=1`, [`dds::Discovery`]).
 
+mod camera_input;
 pub mod dds;
 pub mod grid_msg;
 pub mod lidar_node;
 pub mod lidar_run;
 pub mod msgs;
+pub mod nav_node;
 pub mod pairing;
 pub mod params;
 pub mod rgbd_pairing;
+pub mod sim_node;
 pub mod vo_node;
 pub mod vo_run;
 
 pub use lidar_node::{run_lidar_node, LidarNodeConfig, LidarNodeRun, NodeMode, NodeStats};
 pub use lidar_run::{LidarNodeRequest, LidarNodeSetup};
+pub use nav_node::{run_nav_node, NavNodeConfig, NavNodeRun, NavNodeStats};
+pub use sim_node::{run_sim_node, SimNodeConfig, SimNodeStats};
 pub use vo_node::{run_vo_node, VoNodeConfig, VoNodeRun, VoNodeStats};
 pub use vo_run::{VoNodeRequest, VoNodeSetup};
 

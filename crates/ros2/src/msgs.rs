@@ -7,6 +7,8 @@
 use serde::de::{Error as _, SeqAccess, Visitor};
 use serde::ser::SerializeTuple;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
+use slamkit_core::camera::Intrinsics;
+use slamkit_core::image::RgbImage;
 use slamkit_core::Pose3;
 use slamkit_io::bag::messages as bag;
 use slamkit_io::bag::record::RosTime;
@@ -415,6 +417,62 @@ impl Image {
     }
 }
 
+impl Image {
+    /// An `rgb8` colour image.
+    ///
+    /// ```
+    /// use slamkit_core::image::RgbImage;
+    /// use slamkit_ros2::msgs::{Header, Image};
+    /// let pixels = RgbImage::from_vec(2, 1, vec![[1, 2, 3], [4, 5, 6]]).unwrap();
+    /// let m = Image::rgb8(Header::default(), &pixels);
+    /// assert_eq!((m.width, m.height, m.step), (2, 1, 6));
+    /// assert_eq!(m.data, [1, 2, 3, 4, 5, 6]);
+    /// ```
+    pub fn rgb8(header: Header, image: &RgbImage) -> Self {
+        let data: Vec<u8> = image.data().iter().flatten().copied().collect();
+        Self::packed(header, (image.width(), image.height()), "rgb8", data)
+    }
+
+    /// A `32FC1` depth image in metres (0 where there is no depth, as the session reads it),
+    /// little endian.
+    ///
+    /// ```
+    /// use slamkit_core::image::Image as Pixels;
+    /// use slamkit_ros2::msgs::{Header, Image};
+    /// let depth = Pixels::from_vec(1, 1, vec![1.5f32]).unwrap();
+    /// let m = Image::depth_32fc1(Header::default(), &depth);
+    /// assert_eq!((m.encoding.as_str(), m.step), ("32FC1", 4));
+    /// assert_eq!(m.data, 1.5f32.to_le_bytes());
+    /// ```
+    pub fn depth_32fc1(header: Header, depth_m: &slamkit_core::image::Image<f32>) -> Self {
+        let data: Vec<u8> = depth_m
+            .data()
+            .iter()
+            .flat_map(|d| d.to_le_bytes())
+            .collect();
+        Self::packed(header, (depth_m.width(), depth_m.height()), "32FC1", data)
+    }
+
+    /// Rows of `data` with no padding.
+    fn packed(
+        header: Header,
+        (width, height): (usize, usize),
+        encoding: &str,
+        data: Vec<u8>,
+    ) -> Self {
+        let step = data.len().checked_div(height).unwrap_or(0);
+        Self {
+            header,
+            height: height as u32,
+            width: width as u32,
+            encoding: encoding.into(),
+            is_bigendian: 0,
+            step: step as u32,
+            data,
+        }
+    }
+}
+
 /// `sensor_msgs/CompressedImage`.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct CompressedImage {
@@ -503,6 +561,35 @@ impl CameraInfo {
             roi: [roi.x_offset, roi.y_offset, roi.height, roi.width],
             roi_do_rectify: roi.do_rectify,
         })
+    }
+}
+
+impl CameraInfo {
+    /// The calibration of an undistorted pinhole camera (`plumb_bob`, zero distortion), as a
+    /// driver publishes it for rectified images.
+    ///
+    /// ```
+    /// use slamkit_core::camera::Intrinsics;
+    /// use slamkit_ros2::msgs::{CameraInfo, Header};
+    /// let k = Intrinsics { fx: 500.0, fy: 501.0, cx: 320.0, cy: 240.0, width: 640, height: 480 };
+    /// let info = CameraInfo::pinhole(Header::default(), &k);
+    /// let camera = slamkit_io::bag::rgbd::camera_of(&info.to_bag().unwrap(), None).unwrap();
+    /// assert_eq!(camera.intrinsics, k);
+    /// ```
+    pub fn pinhole(header: Header, k: &Intrinsics) -> Self {
+        Self {
+            header,
+            height: k.height as u32,
+            width: k.width as u32,
+            distortion_model: "plumb_bob".into(),
+            d: vec![0.0; 5],
+            k: [k.fx, 0.0, k.cx, 0.0, k.fy, k.cy, 0.0, 0.0, 1.0],
+            r: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+            p: [
+                k.fx, 0.0, k.cx, 0.0, 0.0, k.fy, k.cy, 0.0, 0.0, 0.0, 1.0, 0.0,
+            ],
+            ..Self::default()
+        }
     }
 }
 

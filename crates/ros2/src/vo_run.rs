@@ -83,6 +83,30 @@ pub struct VoNodeSetup {
 }
 
 impl VoNodeRequest {
+    /// `defaults` with what was asked laid over it: topics, base frame, frame queue, idle
+    /// timeout, discovery.
+    pub fn node_config(&self, defaults: VoNodeConfig) -> VoNodeConfig {
+        let mut node = VoNodeConfig {
+            discovery: self.discovery,
+            idle_exit_s: self.idle_exit_s,
+            ..defaults
+        };
+        for (slot, asked) in [
+            (&mut node.rgb_topic, &self.rgb_topic),
+            (&mut node.depth_topic, &self.depth_topic),
+            (&mut node.camera_info_topic, &self.camera_info_topic),
+            (&mut node.base_frame, &self.base_frame),
+        ] {
+            if let Some(v) = asked {
+                slot.clone_from(v);
+            }
+        }
+        if let Some(q) = self.frame_queue {
+            node.frame_queue = q;
+        }
+        node
+    }
+
     /// The node's settings and the session's: the driver's topics unless others are named,
     /// the profile and settings file laid over the front end's defaults as `slamkit vo` lays
     /// them for a bag, loop closure with `slam`.
@@ -101,24 +125,7 @@ impl VoNodeRequest {
                 "the frame queue must hold a frame".into(),
             ));
         }
-        let mut node = VoNodeConfig {
-            discovery: self.discovery,
-            idle_exit_s: self.idle_exit_s,
-            ..VoNodeConfig::default()
-        };
-        for (slot, asked) in [
-            (&mut node.rgb_topic, &self.rgb_topic),
-            (&mut node.depth_topic, &self.depth_topic),
-            (&mut node.camera_info_topic, &self.camera_info_topic),
-            (&mut node.base_frame, &self.base_frame),
-        ] {
-            if let Some(v) = asked {
-                slot.clone_from(v);
-            }
-        }
-        if let Some(q) = self.frame_queue {
-            node.frame_queue = q;
-        }
+        let node = self.node_config(VoNodeConfig::default());
         let settings = visual::session_settings(
             self.frontend,
             DatasetFormat::RosBag,

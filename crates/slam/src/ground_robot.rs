@@ -235,6 +235,19 @@ impl GroundRobotNav {
         command
     }
 
+    /// Heads for `goal` (world x, y) from now on: the next frame with a pose re-plans. The
+    /// map keeps the bounds it was made with (the start and the first goal widened by
+    /// [`MAP_MARGIN_M`]), so a goal beyond them does not plan (a counted plan failure).
+    pub fn set_goal(&mut self, goal: Point2<f64>) {
+        self.goal = goal;
+        self.next_replan_s = f64::NEG_INFINITY;
+    }
+
+    /// The goal (world x, y).
+    pub fn goal(&self) -> Point2<f64> {
+        self.goal
+    }
+
     /// The path being followed (world x, y).
     pub fn path(&self) -> &[Point2<f64>] {
         self.tracker.path()

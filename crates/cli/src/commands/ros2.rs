@@ -1,12 +1,15 @@
-//! `slamkit ros2 lidar|vo`: the ROS 2 nodes ([`slamkit_ros2`]) with their arguments; on stop
+//! `slamkit ros2 lidar|vo|nav`: the ROS 2 nodes ([`slamkit_ros2`]) with their arguments; on stop
 //! (Ctrl-C, SIGTERM, or `--idle-exit`) the map, trajectory and report go to `--out`.
 
+use crate::commands::plan::parse_xy;
 use crate::commands::vo::{CameraTopicArgs, Frontend};
 use crate::output::finish;
 use slamkit_io::output_folder::OutputFolder;
 use slamkit_ros2::dds::Discovery;
 use slamkit_ros2::{run_lidar_node, run_vo_node, LidarNodeRequest, LidarNodeRun};
-use slamkit_ros2::{VoNodeRequest, VoNodeRun};
+use slamkit_ros2::{run_nav_node, NavNodeConfig, NavNodeRun, VoNodeRequest, VoNodeRun};
+use slamkit_slam::ground_robot::closed_loop::NavLoopConfig;
+use slamkit_slam::profile::settings;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -26,6 +29,43 @@ enum Ros2Node {
     /// aligned depth and camera_info (a RealSense driver's topics by default); publishes
     /// map→camera_link on /tf, /pose and /path.
     Vo(VoNodeArgs),
+    /// A ground robot with an RGB-D camera driven to a goal (`--goal`, or /goal_pose as RViz
+    /// sends it): the session of `slamkit nav` on the camera's topics; publishes /cmd_vel,
+    /// map→base_footprint on /tf, /pose, /path, /plan and /map.
+    Nav(NavNodeArgs),
+}
+
+/// Arguments of `slamkit ros2 nav`.
+#[derive(Debug, clap::Args)]
+struct NavNodeArgs {
+    /// The camera's topics (default: the RealSense ROS 2 driver's, with aligned depth).
+    #[command(flatten)]
+    topics: CameraTopicArgs,
+    /// Goal `X,Y` in the map frame (m; the map frame is the base frame where the robot
+    /// stands at the first frame); without it the robot waits for one on /goal_pose.
+    #[arg(long, allow_hyphen_values = true)]
+    goal: Option<String>,
+    /// The robot's frame on the floor, the child of `map` on /tf (the camera's mounting from
+    /// it to the images' optical frame comes from /tf_static).
+    #[arg(long, default_value = "base_footprint")]
+    base_frame: String,
+    /// Named profile of the robot (or a profile file `X.toml`): its `[nav]` settings, as for
+    /// `slamkit nav`.
+    #[arg(long)]
+    profile: Option<String>,
+    /// TOML file laid over the profile's settings (as for `slamkit nav`; the `sim` table is
+    /// not used).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Frames waiting for the session at most; newer ones are dropped and counted.
+    #[arg(long)]
+    frame_queue: Option<usize>,
+    /// Stop once no image came for this many seconds.
+    #[arg(long)]
+    idle_exit: Option<f64>,
+    /// Where the trajectory, map and report go when the node stops.
+    #[arg(long, default_value = "out/ros2-nav")]
+    out: PathBuf,
 }
 
 /// Arguments of `slamkit ros2 vo`.
@@ -102,12 +142,13 @@ pub fn run(args: &Ros2Args) -> anyhow::Result<()> {
     match &args.node {
         Ros2Node::Lidar(a) => lidar(a),
         Ros2Node::Vo(a) => vo(a),
+        Ros2Node::Nav(a) => nav(a),
     }
 }
 
 /// The discovery the environment asks for (`ROS_DOMAIN_ID`, `ROS_LOCALHOST_ONLY`,
 /// `ROS_AUTOMATIC_DISCOVERY_RANGE`).
-fn discovery() -> anyhow::Result<Discovery> {
+pub(crate) fn discovery() -> anyhow::Result<Discovery> {
     let var = |name| std::env::var(name).ok();
     Ok(Discovery::from_env(
         var("ROS_DOMAIN_ID").as_deref(),
@@ -148,6 +189,74 @@ fn vo(args: &VoNodeArgs) -> anyhow::Result<()> {
     let summary = slamkit_slam::visual::run_files::summary(&report);
     finish(folder, &report)?;
     println!("{summary}\noutputs in {out}");
+    Ok(())
+}
+
+fn nav(args: &NavNodeArgs) -> anyhow::Result<()> {
+    let started = Instant::now();
+    let goal = args
+        .goal
+        .as_deref()
+        .map(|text| parse_xy(text, "goal"))
+        .transpose()?;
+    let t = &args.topics;
+    let request = VoNodeRequest {
+        rgb_topic: t.rgb_topic.clone(),
+        depth_topic: t.depth_topic.clone(),
+        camera_info_topic: t.camera_info_topic.clone(),
+        base_frame: Some(args.base_frame.clone()),
+        frame_queue: args.frame_queue,
+        idle_exit_s: args.idle_exit,
+        discovery: discovery()?,
+        ..VoNodeRequest::default()
+    };
+    if args.frame_queue == Some(0) {
+        anyhow::bail!("--frame-queue 0: the frame queue must hold a frame");
+    }
+    let defaults = NavNodeConfig::default();
+    let config = NavNodeConfig {
+        camera: request.node_config(defaults.camera.clone()),
+        ..defaults
+    };
+    let nav = settings(
+        NavLoopConfig::default(),
+        "nav",
+        args.profile.as_deref(),
+        args.config.as_deref(),
+    )?
+    .nav();
+    let folder = OutputFolder::create(&args.out, NavNodeRun::OUTPUTS)?;
+    let stop = crate::output::stop_flag()?;
+    let out = args.out.display();
+    let c = &config.camera;
+    let heading = goal.map_or_else(
+        || format!("the goal on {}", config.goal_topic),
+        |g| format!("({}, {})", g.x, g.y),
+    );
+    println!(
+        "slamkit ros2 nav: {} + {} ({}) to {heading} -> {}, {}->{} on {}, {}, {}, {}, {}; \
+         Ctrl-C stops the robot and saves to {out}",
+        c.rgb_topic,
+        c.depth_topic,
+        c.camera_info_topic,
+        config.cmd_vel_topic,
+        c.map_frame,
+        c.base_frame,
+        c.tf_topic,
+        c.pose_topic,
+        c.path_topic,
+        config.plan_topic,
+        config.map_topic
+    );
+    let run = run_nav_node(&config, &nav, goal, &stop)?;
+    let mut report = run.finish(&nav, folder.path())?;
+    report["wall_seconds"] = serde_json::json!(started.elapsed().as_secs_f64());
+    finish(folder, &report)?;
+    let s = &run.stats;
+    println!(
+        "{} commands, {} poses, {} frames before a goal, last status {:?}; outputs in {out}",
+        s.commands_published, s.camera.poses_published, s.frames_before_goal, s.last_status
+    );
     Ok(())
 }
 
