@@ -316,7 +316,7 @@ pub fn adjust(
             };
             terms
                 .linearise(*i, t, p, false)
-                .is_none_or(|(r, _, _)| r.norm() > config.huber_sigma)
+                .map_or(true, |(r, _, _)| r.norm() > config.huber_sigma)
         })
         .count();
     BundleSummary {

@@ -140,9 +140,9 @@ pub fn run(sim: &FleetSim, stop: &AtomicBool) -> anyhow::Result<()> {
         }
         args
     };
-    for k in 0..robots.len() {
-        let log = at(&format!("{}.log", robots[k].name));
-        fleet.start(&robots[k].name, &robot_args(k), &log)?;
+    for (k, robot) in robots.iter().enumerate() {
+        let log = at(&format!("{}.log", robot.name));
+        fleet.start(&robot.name, &robot_args(k), &log)?;
     }
     let run_wall_s = robots.iter().map(|r| r.duration_s).fold(0.0, f64::max) / sim.rate;
     let reports: Vec<PathBuf> = robots

@@ -254,7 +254,7 @@ pub(crate) fn load_config<C: Serialize + DeserializeOwned + Default>(
 
 /// The relations metric of `trajectory` for report.json
 /// ([`slamkit_slam::lidar::run_report::relations_metrics`]); when scoring fails, the error in
-/// `error` ([`finish`] writes the report, then fails with it).
+/// `error` ([`finish_with_page`] writes the report, then fails with it).
 pub(crate) fn relations_metrics(args: &LidarArgs, trajectory: &Trajectory) -> serde_json::Value {
     run_report::relations_metrics(args.relations.as_deref(), &args.log, trajectory)
 }

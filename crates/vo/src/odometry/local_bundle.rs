@@ -128,7 +128,7 @@ impl Odometry {
         let mut landmarks = Vec::new();
         for (keyframe, k) in self.recent.iter().enumerate() {
             for &(id, pixel, depth_m) in &k.seen {
-                if seen_by.get(&id).is_none_or(|&n| n < 2) {
+                if seen_by.get(&id).map_or(true, |&n| n < 2) {
                     continue;
                 }
                 let point = match index.get(&id) {
