@@ -29,7 +29,10 @@ use crate::motion::{observation_covariance, project, MeasurementNoise, StereoCam
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct LocalBaConfig {
-    /// Refine the local map after each key frame.
+    /// Refine the local map after each key frame. Off by default: it lowers 7-Scenes
+    /// RedKitchen's `--slam` ATE (KLT 0.0351 → 0.0325 m, ORB 0.0446 → 0.0344 m) but raises
+    /// the simulated office robot's (`slamkit nav --world office --seed 1`: mean localisation
+    /// error 0.041 → 0.091 m, largest 0.094 → 0.299 m, goal missed), and why is not known yet.
     pub enabled: bool,
     /// The newest this many key frames are adjusted \[key frames\].
     pub window_keyframes: usize,
@@ -45,7 +48,7 @@ pub struct LocalBaConfig {
 impl Default for LocalBaConfig {
     fn default() -> Self {
         Self {
-            enabled: true,
+            enabled: false,
             window_keyframes: 10,
             fixed_keyframes: 2,
             iterations: 5,
