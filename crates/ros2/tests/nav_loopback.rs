@@ -332,11 +332,14 @@ fn the_simulated_robot_publishes_its_camera_and_drives_by_cmd_vel() {
         stats.steps_driven,
         stats.late_frames
     );
-    // 2 s at 10 Hz at most: a frame takes longer to render than its period on a loaded
-    // machine (then counted late)
+    // 2 s at 10 Hz: frames at 0, 0.1, ..., 2.0 s; fewer only when a frame took longer to
+    // render than its period (a loaded machine), and then counted late
     let frames = stats.frames_published;
     assert!((3..=21).contains(&frames), "{frames}");
-    assert!(stats.late_frames + 20 >= frames);
+    assert!(
+        frames == 21 || stats.late_frames > 0,
+        "{frames} frames, none late"
+    );
     assert!(images.len() * 2 >= frames, "{} images", images.len());
     for (w, h, encoding, bytes) in &images {
         assert_eq!(
