@@ -57,7 +57,8 @@ pub fn write_run_page(dir: &Path, title: &str, report: &Value) -> Result<(), Sla
         page.table(&["quantity", "value"], &rows);
     }
     let truth = read_if_present(&dir.join("groundtruth.tum"));
-    map_section(&mut page, dir, truth.as_ref());
+    let grid = read_grid(dir);
+    map_section(&mut page, dir, grid.as_ref(), truth.as_ref());
     errors_section(&mut page, dir, report, truth.as_ref());
     let timings = timing_rows(report);
     if !timings.is_empty() {
@@ -67,15 +68,20 @@ pub fn write_run_page(dir: &Path, title: &str, report: &Value) -> Result<(), Sla
             &timings,
         );
     }
-    pictures_section(&mut page, dir)?;
+    let map_drawn = grid.is_some_and(|g| g.is_ok());
+    pictures_section(&mut page, dir, map_drawn)?;
     page.raw(ZOOM_SCRIPT);
     Ok(page.write(&dir.join("report.html"))?)
 }
 
 /// The map (`map.png` placed by `map.yaml`) with every `trajectory*.tum` of `dir` on it; with
 /// ground truth and no map, the truth and the estimate aligned onto it (as ATE aligns them).
-fn map_section(page: &mut HtmlReport, dir: &Path, truth: Option<&Result<Trajectory, String>>) {
-    let grid = read_grid(dir);
+fn map_section(
+    page: &mut HtmlReport,
+    dir: &Path,
+    grid: Option<&Result<GridBytes, String>>,
+    truth: Option<&Result<Trajectory, String>>,
+) {
     let estimate = read_if_present(&dir.join("trajectory.tum"));
     let mut lines: Vec<(String, &str, Vec<[f64; 2]>)> = Vec::new();
     let mut notes = Vec::new();
@@ -106,7 +112,7 @@ fn map_section(page: &mut HtmlReport, dir: &Path, truth: Option<&Result<Trajecto
     if let Some(Err(e)) = &grid {
         notes.push(e.clone());
     }
-    let grid_bytes = grid.as_ref().and_then(|g| g.as_ref().ok());
+    let grid_bytes = grid.and_then(|g| g.as_ref().ok());
     if lines.is_empty() && grid_bytes.is_none() {
         for note in notes {
             page.paragraph(&escape(&note));
@@ -221,8 +227,7 @@ fn since_start(mut points: Vec<[f64; 2]>) -> Vec<[f64; 2]> {
 
 /// Every PNG of `dir` but `map.png` when the map section drew it, and those of its
 /// sub-folders one level down (the drone's layer maps), each under its name.
-fn pictures_section(page: &mut HtmlReport, dir: &Path) -> Result<(), SlamError> {
-    let map_drawn = read_grid(dir).is_some_and(|g| g.is_ok());
+fn pictures_section(page: &mut HtmlReport, dir: &Path, map_drawn: bool) -> Result<(), SlamError> {
     let mut pngs: Vec<PathBuf> = Vec::new();
     for folder in std::iter::once(dir.to_path_buf()).chain(sub_folders(dir)) {
         pngs.extend(files_with_extension(&folder, "png"));
