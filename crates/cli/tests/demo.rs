@@ -6,12 +6,19 @@
 //! has every world on more seeds.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers fail loudly
 
+mod recording;
+
 use std::path::Path;
 use std::process::Command;
 
 /// Runs the demo on `world` into a fresh folder, checks the mean errors against the bounds
 /// `[icp, pf]` (see [`check_bounds`]) and returns its report, or `None` in debug builds.
-fn demo(world: &str, out: &Path, bounds_m: [f64; 2]) -> Option<serde_json::Value> {
+fn demo(
+    world: &str,
+    out: &Path,
+    record: Option<&Path>,
+    bounds_m: [f64; 2],
+) -> Option<serde_json::Value> {
     if cfg!(debug_assertions) {
         eprintln!("skipped: demo {world}: run with --release");
         return None;
@@ -19,6 +26,7 @@ fn demo(world: &str, out: &Path, bounds_m: [f64; 2]) -> Option<serde_json::Value
     let run = Command::new(env!("CARGO_BIN_EXE_slamkit"))
         .args(["demo", "--world", world, "--out"])
         .arg(out)
+        .args(record.iter().flat_map(|r| [Path::new("--record"), r]))
         .output()
         .unwrap();
     let stdout = String::from_utf8_lossy(&run.stdout);
@@ -84,7 +92,8 @@ fn check_layer_choice(report: &serde_json::Value, max_error_m: Option<f64>) {
 #[test]
 fn demo_small_within_the_seed_errors_and_writes_every_output() {
     let dir = tempfile::tempdir().unwrap();
-    let Some(report) = demo("small", dir.path(), [0.13, 0.24]) else {
+    let mcap = dir.path().join("demo.mcap");
+    let Some(report) = demo("small", dir.path(), Some(&mcap), [0.13, 0.24]) else {
         return;
     };
     for file in [
@@ -109,8 +118,23 @@ fn demo_small_within_the_seed_errors_and_writes_every_output() {
     let layers = report["layers"]["count"].as_u64().unwrap();
     assert!(layers >= 2, "the flight crosses height layers: {layers}");
     let html = std::fs::read_to_string(dir.path().join("report.html")).unwrap();
-    // every image is embedded: one error plot per method (errors_*.png), two whole maps, one
-    // map per layer
+    // the map of every layer, zoomable, with the truth and each method's trajectory on it (VO's
+    // anchored at the camera's start), the error over time, the time per stage, and every
+    // other image embedded: one error plot per method (errors_*.png), the particle filter's
+    // map, one map per layer
+    for part in [
+        "<h2>Map</h2>",
+        "<svg class=\"zoomable\"",
+        "ground truth",
+        "trajectory_pf",
+        "trajectory_vo",
+        "Position error over time",
+        "Time per stage",
+        "icp.",
+        "layer choice by particles: layer ",
+    ] {
+        assert!(html.contains(part), "report.html lacks {part}");
+    }
     let plots = std::fs::read_dir(dir.path())
         .unwrap()
         .filter(|e| {
@@ -119,15 +143,35 @@ fn demo_small_within_the_seed_errors_and_writes_every_output() {
             name.starts_with("errors_") && name.ends_with(".png")
         })
         .count();
-    assert!(plots >= 2, "{plots} error plots");
-    assert!(html.contains("layer choice by particles: layer "));
+    assert!(plots >= 3, "{plots} error plots");
     let images = html.matches("src=\"data:image/png;base64,").count();
-    assert_eq!(images, plots + 2 + layers as usize);
+    assert_eq!(images, plots + 1 + layers as usize);
+
+    // the recording: every scan with its poses and truth, the maps as they grew, every camera
+    // frame, the paths and the cloud at the end
+    let recorded = recording::read(&mcap);
+    assert_eq!(recorded.counts, recording::reported_counts(&report));
+    let c = |topic: &str| recorded.counts.get(topic).copied().unwrap_or(0);
+    let scans = report["frames"]["read"].as_u64().unwrap();
+    for topic in ["/scan", "/groundtruth", "/pose", "/tf", "/pose_pf"] {
+        assert_eq!(c(topic), scans, "{topic}");
+    }
+    assert!((2..=10).contains(&c("/map")) && c("/path") == c("/map"));
+    let frames = &report["vo"]["frames"];
+    assert_eq!(c("/camera/image"), frames["frames"].as_u64().unwrap());
+    assert!(c("/camera/pose") > 0 && c("/camera/pose") <= c("/camera/image"));
+    assert_eq!((c("/path_pf"), c("/cloud")), (1, 1));
+    assert_eq!(recorded.schemas["/cloud"], "foxglove.PointCloud");
 }
 
 #[test]
 fn demo_large_within_the_seed_errors() {
-    let Some(report) = demo("large", tempfile::tempdir().unwrap().path(), [0.29, 0.33]) else {
+    let Some(report) = demo(
+        "large",
+        tempfile::tempdir().unwrap().path(),
+        None,
+        [0.29, 0.33],
+    ) else {
         return;
     };
     // the error includes the layer map's own (layered ICP-SLAM's) error: 0.27 m in seed 1
@@ -136,7 +180,12 @@ fn demo_large_within_the_seed_errors() {
 
 #[test]
 fn demo_office_within_the_seed_errors() {
-    let Some(report) = demo("office", tempfile::tempdir().unwrap().path(), [0.17, 0.31]) else {
+    let Some(report) = demo(
+        "office",
+        tempfile::tempdir().unwrap().path(),
+        None,
+        [0.17, 0.31],
+    ) else {
         return;
     };
     check_layer_choice(&report, None);

@@ -3,6 +3,8 @@
 //! inside an obstacle, and bad settings files, exit non-zero with a message that says why.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers fail loudly
 
+mod recording;
+
 use std::path::Path;
 use std::process::{Command, Output};
 
@@ -20,7 +22,12 @@ fn nav(args: &[&str], out: &Path) -> Output {
 fn office_seed_1_reaches_the_built_in_goal() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("nav");
-    let result = nav(&["--world", "office", "--seed", "1"], &out);
+    let mcap = dir.path().join("nav.mcap");
+    let record = ["--record", mcap.to_str().unwrap()];
+    let result = nav(
+        &[&["--world", "office", "--seed", "1"][..], &record].concat(),
+        &out,
+    );
     assert!(result.status.success(), "{result:?}");
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
@@ -46,6 +53,22 @@ fn office_seed_1_reaches_the_built_in_goal() {
     let poses = tum.lines().filter(|l| !l.starts_with('#')).count();
     let frames = &report["frames"];
     assert_eq!(poses, frames["tracked"].as_u64().unwrap() as usize);
+    // the recording: every frame's image and true pose, each estimate, the plans, the map
+    let recorded = recording::read(&mcap);
+    assert_eq!(recorded.counts, recording::reported_counts(&report));
+    let c = |topic: &str| recorded.counts.get(topic).copied().unwrap_or(0) as usize;
+    let frame_count = frames["frames"].as_u64().unwrap() as usize;
+    assert_eq!(
+        (c("/camera/image"), c("/groundtruth")),
+        (frame_count, frame_count)
+    );
+    assert_eq!((c("/pose"), c("/tf")), (poses, poses));
+    assert!(c("/plan") >= 1 && c("/map") >= 2 && c("/path") == c("/map"));
+    assert_eq!(recorded.schemas["/map"], "foxglove.Grid");
+    let map = &recorded.last["/map"];
+    assert!(map["column_count"].as_u64().unwrap() > 10, "{map}");
+    let path = recorded.last["/path"]["poses"].as_array().unwrap().len();
+    assert_eq!(path, poses);
     let csv = std::fs::read_to_string(out.join("frames.csv")).unwrap();
     assert_eq!(
         csv.lines().count(),

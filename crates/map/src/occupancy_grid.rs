@@ -109,6 +109,22 @@ pub enum Occupancy {
 }
 
 impl Occupancy {
+    /// The cell's value in a ROS `nav_msgs/OccupancyGrid` (and Foxglove's grids, numpy
+    /// arrays of slamkit's Python package): 100 occupied, 0 free, -1 unknown.
+    ///
+    /// ```
+    /// use slamkit_map::Occupancy;
+    /// assert_eq!(Occupancy::Occupied.ros_value(), 100);
+    /// assert_eq!(Occupancy::Unknown.ros_value(), -1);
+    /// ```
+    pub fn ros_value(self) -> i8 {
+        match self {
+            Self::Occupied => 100,
+            Self::Free => 0,
+            Self::Unknown => -1,
+        }
+    }
+
     /// Classifies a log-odds value.
     pub fn from_log_odds(log_odds: f32) -> Self {
         if log_odds > 0.0 {

@@ -71,6 +71,36 @@ pub struct DroneSlamConfig {
     pub odometry_gate: OdometryGateConfig,
 }
 
+impl DroneSlamConfig {
+    /// A drone session's settings as a shell builds them: the defaults, the profile's `[drone]`
+    /// table (a built-in name or a `.toml` file), then the file `config`. With `particles`,
+    /// the particle filter runs too: a drone's tuning ([`particle_filter::drone_pf_config`])
+    /// with that many particles, unless a `[particle_filter]` table of the files sets its own;
+    /// `seed`, when given, is the filter's seed either way.
+    ///
+    /// # Errors
+    /// [`SlamError::Config`] for an unknown profile or a field of either file that is unknown
+    /// or of the wrong type.
+    pub fn from_files(
+        particles: Option<usize>,
+        seed: Option<u64>,
+        profile: Option<&str>,
+        config: Option<&Path>,
+    ) -> Result<Self, SlamError> {
+        let mut settings = crate::profile::settings(Self::default(), "drone", profile, config)?;
+        if let (Some(particles), None) = (particles, &settings.particle_filter) {
+            settings.particle_filter = Some(RbpfConfig {
+                particles,
+                ..particle_filter::drone_pf_config(seed.unwrap_or(RbpfConfig::default().seed))
+            });
+        }
+        if let (Some(pf), Some(seed)) = (settings.particle_filter.as_mut(), seed) {
+            pf.seed = seed;
+        }
+        Ok(settings)
+    }
+}
+
 /// What the session made of one scan.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ScanRecord {

@@ -10,8 +10,13 @@
 //! The file is written beside its final name and renamed into place by [`Recorder::finish`], so
 //! a run that fails or is killed never leaves a half-written recording under that name.
 
+mod demo;
+mod nav;
 mod visual;
 
+pub use demo::record_demo;
+pub use nav::NavRecording;
+pub(crate) use visual::{encode_jpeg, EncodedImage};
 pub use visual::{VisualRecording, IMAGE_TOPIC};
 
 use crate::SlamError;
@@ -19,8 +24,7 @@ use mcap::records::MessageHeader;
 use serde_json::{json, Value};
 use slamkit_core::{LaserScan, PointCloud, Pose3};
 use slamkit_eval::report_html::base64;
-use slamkit_map::grid_io::trinary_image;
-use slamkit_map::OccupancyGrid;
+use slamkit_map::TriGrid;
 use std::collections::BTreeMap;
 use std::fs::File;
 use std::io::BufWriter;
@@ -231,31 +235,24 @@ impl Recorder {
         self.write("/tf", &FRAME_TRANSFORM, t, &message)
     }
 
-    /// The known part of `grid` on `topic` in `frame`, at time `t` \[s\].
+    /// `grid` on `topic` in `frame`, at time `t` \[s\] (ROS occupancy values: −1 unknown, 0
+    /// free, 100 occupied).
     pub fn grid(
         &mut self,
         topic: &str,
         frame: &str,
         t: f64,
-        grid: &OccupancyGrid,
+        grid: &TriGrid,
     ) -> Result<(), SlamError> {
-        let image = trinary_image(grid);
-        let width = image.width as usize;
-        // The image's top row is the grid's last: Foxglove's rows go up from the grid's pose.
-        let mut cells = Vec::with_capacity(image.pixels.len());
-        for row in image.pixels.chunks(width.max(1)).rev() {
-            cells.extend(row.iter().map(|&p| match p {
-                slamkit_map::grid_io::OCCUPIED_PIXEL => 100_i8 as u8,
-                slamkit_map::grid_io::FREE_PIXEL => 0,
-                _ => -1_i8 as u8,
-            }));
-        }
-        let origin = Pose3::translation(image.origin_m.x, image.origin_m.y, 0.0);
+        // Both count rows up from the grid's origin, x fastest.
+        let cells: Vec<u8> = grid.cells().iter().map(|c| c.ros_value() as u8).collect();
+        let o = grid.origin_m();
         let message = json!({
-            "timestamp": stamp(t), "frame_id": frame, "pose": pose_json(&origin),
-            "column_count": width,
+            "timestamp": stamp(t), "frame_id": frame,
+            "pose": pose_json(&Pose3::translation(o.x, o.y, 0.0)),
+            "column_count": grid.width(),
             "cell_size": { "x": grid.resolution_m(), "y": grid.resolution_m() },
-            "row_stride": width, "cell_stride": 1,
+            "row_stride": grid.width(), "cell_stride": 1,
             "fields": [{ "name": "occupancy", "offset": 0, "type": INT8 }],
             "data": base64(&cells),
         });
@@ -456,7 +453,7 @@ impl LidarRecording {
         scans: &[LaserScan],
         t: f64,
     ) -> Result<(), SlamError> {
-        let grid = session.output_grid(scans)?;
+        let grid = TriGrid::from_occupancy_grid(&session.output_grid(scans)?);
         self.recorder.grid("/map", "map", t, &grid)?;
         self.recorder.poses("/path", "map", t, &self.path)
     }

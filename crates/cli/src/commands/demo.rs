@@ -8,9 +8,11 @@
 //! and error over time), `rgbd/` (the camera's TUM RGB-D folder), `trajectory_vo.tum`,
 //! `errors_vo.png`, `report.json` (`metrics.{icp,pf}.position_error_mean_m`,
 //! `metrics.{icp,pf}.position_error_max_m`, `metrics.vo.ate_rmse_m`,
-//! `metrics.layer_localisation`) and `report.html` (all of it on one page, images embedded).
+//! `metrics.layer_localisation`) and `report.html` (the page every run gets:
+//! [`slamkit_slam::report::page`]).
+//! With `--record FILE.mcap`, the run as an MCAP file ([`slamkit_slam::record::record_demo`]).
 
-use crate::output::{finish, progress_bar};
+use crate::output::{finish_with_page, progress_bar};
 use serde_json::json;
 use slamkit_io::output_folder::OutputFolder;
 use slamkit_slam::drone::demo::{run_demo, DemoStep, DEMO_OUTPUTS};
@@ -30,6 +32,10 @@ pub struct DemoArgs {
     /// Output folder.
     #[arg(long, default_value = "out/demo")]
     pub out: PathBuf,
+    /// Also record the run as an MCAP file (Foxglove opens it): scans, every method's poses
+    /// and the truth, the maps as they grow, the camera's images and its odometry.
+    #[arg(long, value_name = "FILE.mcap")]
+    pub record: Option<PathBuf>,
 }
 
 /// Runs `slamkit demo`.
@@ -52,10 +58,17 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
             camera_bar.inc(1);
         }
     };
-    let mut outcome = run_demo(&args.world, args.seed, folder.path(), &progress)?;
+    let mut outcome = run_demo(
+        &args.world,
+        args.seed,
+        folder.path(),
+        args.record.as_deref(),
+        &progress,
+    )?;
     camera_bar.finish_and_clear();
     outcome.report["wall_seconds"] = json!(started.elapsed().as_secs_f64());
-    finish(folder, &outcome.report)?;
+    let title = format!("slamkit demo: {} world, seed {}", args.world, args.seed);
+    finish_with_page(folder, &outcome.report, &title)?;
     println!("{}", outcome.summary());
     println!("outputs in {}", args.out.display());
     Ok(())

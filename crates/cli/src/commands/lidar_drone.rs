@@ -11,7 +11,7 @@
 //! `--method rbpf` `trajectory_pf.tum` and `map_pf.*`, and with `--save-map` the `.skmap`.
 
 use crate::commands::lidar::{
-    load_config, page_title, print_summary, read_log, relations_metrics, LidarArgs, Method, OUTPUTS,
+    page_title, print_summary, read_log, relations_metrics, LidarArgs, Method, OUTPUTS,
 };
 use crate::output::{finish_with_page, merge_json, progress_bar, Unsuccessful};
 use serde_json::json;
@@ -20,9 +20,7 @@ use slamkit_core::Observation;
 use slamkit_io::drone_csv::read_observations;
 use slamkit_io::output_folder::OutputFolder;
 use slamkit_io::write_tum;
-use slamkit_lidar::rbpf::RbpfConfig;
 use slamkit_slam::drone::map::DroneMap;
-use slamkit_slam::drone::particle_filter::drone_pf_config;
 use slamkit_slam::lidar::preflight::{ensure_fits_memory, particle_maps_min_bytes};
 use slamkit_slam::{DroneSlam, DroneSlamConfig, Session};
 use std::path::Path;
@@ -31,16 +29,12 @@ use std::time::Instant;
 /// Runs the drone session on the log and the CSV files of `args` (`ranges` is `--ranges`).
 pub fn run(args: &LidarArgs, ranges: &Path) -> anyhow::Result<()> {
     let started = Instant::now();
-    let mut config: DroneSlamConfig = load_config(args, "drone")?;
-    if args.method == Method::Rbpf && config.particle_filter.is_none() {
-        config.particle_filter = Some(RbpfConfig {
-            particles: args.particles,
-            ..drone_pf_config(args.seed.unwrap_or(RbpfConfig::default().seed))
-        });
-    }
-    if let (Some(pf), Some(seed)) = (config.particle_filter.as_mut(), args.seed) {
-        pf.seed = seed;
-    }
+    let config = DroneSlamConfig::from_files(
+        (args.method == Method::Rbpf).then_some(args.particles),
+        args.seed,
+        args.profile.as_deref(),
+        args.config.as_deref(),
+    )?;
     let folder = OutputFolder::create(&args.out, OUTPUTS)?;
     let out = folder.path();
     let log = read_log(&args.log, &args.topics)?;

@@ -7,10 +7,12 @@
 //! Writes in `--out`: `trajectory.tum` (estimated poses), `groundtruth.tum` (true poses),
 //! `frames.csv` (per camera frame: true and estimated pose, VO's status, inliers and failure),
 //! `map.png` (the robot's map, inflated obstacles shaded, every plan in red, the true driven
-//! path in blue, the true-map shortest path in green), `map.skmap` (the camera's keyframes and
+//! path in blue, the true-map shortest path in green), `map.pgm`/`map.yaml` (the robot's floor
+//! grid, ROS `map_server` format), `map.skmap` (the camera's keyframes and
 //! the floor grid: `slamkit plan --map` plans on it) and `report.json` (`localisation`,
 //! `metrics.reached`, `metrics.time_s`, `metrics.path_length_m`, `metrics.optimal_length_m`,
-//! `metrics.max_cross_track_m`, ...).
+//! `metrics.max_cross_track_m`, ...). With `--record FILE.mcap`, the run as an MCAP file
+//! ([`slamkit_slam::record::NavRecording`]).
 
 use crate::commands::plan::parse_xy;
 use crate::output::{finish_with_page, Unsuccessful};
@@ -20,6 +22,7 @@ use slamkit_io::output_folder::OutputFolder;
 use slamkit_sim::World;
 use slamkit_slam::ground_robot::closed_loop::{run_nav_loop, NavLoopConfig};
 use slamkit_slam::profile::settings;
+use slamkit_slam::record::NavRecording;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -29,6 +32,8 @@ const OUTPUTS: &[&str] = &[
     "trajectory.tum",
     "groundtruth.tum",
     "map.png",
+    "map.pgm",
+    "map.yaml",
     "map.skmap",
     "frames.csv",
     "report.json",
@@ -63,6 +68,10 @@ pub struct NavArgs {
     /// Output folder.
     #[arg(long, default_value = "out/nav")]
     pub out: PathBuf,
+    /// Also record the run as an MCAP file (Foxglove opens it): the camera's images, the
+    /// estimated and true poses, every plan, and the map as it grows.
+    #[arg(long, value_name = "FILE.mcap")]
+    pub record: Option<PathBuf>,
 }
 
 /// Runs `slamkit nav`.
@@ -82,7 +91,15 @@ pub fn run(args: &NavArgs) -> anyhow::Result<()> {
     )?;
     let folder = OutputFolder::create(&args.out, OUTPUTS)?;
     let out = folder.path();
-    let outcome = run_nav_loop(world, goal, args.seed, &config)?;
+    let mut recording = args
+        .record
+        .as_deref()
+        .map(NavRecording::create)
+        .transpose()?;
+    let outcome = run_nav_loop(world, goal, args.seed, &config, recording.as_mut())?;
+    let recorded = recording
+        .map(|r| r.finish(outcome.time_s, &outcome.grid))
+        .transpose()?;
     outcome.write_run_files(out, &config)?;
     let o = &outcome;
     let report = json!({
@@ -92,6 +109,7 @@ pub fn run(args: &NavArgs) -> anyhow::Result<()> {
         "frames": o.camera_stats,
         "metrics": o.metrics_json(),
         "timings_ms": o.timings.summary(),
+        "recording": recorded.map(|messages| json!({ "file": args.record, "messages": messages })),
         "wall_seconds": started.elapsed().as_secs_f64(),
     });
     let title = format!("slamkit nav: {world_name} world, seed {}", args.seed);

@@ -6,20 +6,20 @@
 //! scored against the simulator's truth by [`super::simulated`], then the kidnapped-drone layer
 //! check ([`super::kidnapped`]) and RGB-D visual odometry on the same flight seen by the drone's
 //! camera ([`crate::visual::simulated`]). Everything it finds is written as files people open
-//! (grids, plots, a PLY cloud, an HTML page) and returned as the report's JSON.
+//! (grids, plots, a PLY cloud) and returned as the report's JSON, which the caller writes with
+//! its page (`slamkit demo` does it with [`crate::report::page::write_run_page`]).
 
-use super::grids::LayerFile;
 use super::kidnapped;
 use super::simulated::{flight_config, FlightErrors, SimulatedFlight};
+use crate::record::record_demo;
 use crate::visual::simulated::run_simulated_rgbd;
 use crate::SlamError;
 use serde_json::{json, Value};
 use slamkit_eval::plot::{plot_position_errors, positions, TopView};
-use slamkit_eval::report_html::{Figure, HtmlReport};
 use slamkit_io::write_tum;
 
 use slamkit_sim::{SimConfig, Simulation, World};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// The files and folders a demo writes in its output folder.
 #[rustfmt::skip]
@@ -45,7 +45,8 @@ pub enum DemoStep {
     CameraFrame,
 }
 
-/// One method's line in the demo's table: name, mean and largest error \[m\], its error plot.
+/// One method's line in the demo's table: name, mean and largest error \[m\] (its plot is
+/// `errors_KEY.png`).
 #[derive(Debug, Clone)]
 pub struct MethodErrors {
     /// Name shown to people.
@@ -54,8 +55,6 @@ pub struct MethodErrors {
     pub mean_m: f64,
     /// Largest position error \[m\].
     pub max_m: f64,
-    /// Top view and error over time.
-    pub plot: PathBuf,
 }
 
 /// What a demo found; its files are in the output folder.
@@ -94,7 +93,8 @@ impl DemoOutcome {
 }
 
 /// Runs the demo in the built-in `world` (`small`, `large` or `office`) with `seed`, writing
-/// [`DEMO_OUTPUTS`] into `out` (an existing folder).
+/// [`DEMO_OUTPUTS`] into `out` (an existing folder), and with `record` an MCAP recording of it
+/// there ([`record_demo`]).
 ///
 /// # Errors
 /// An unknown world, a session that refuses its input, or a file that cannot be written.
@@ -102,6 +102,7 @@ pub fn run_demo(
     world: &str,
     seed: u64,
     out: &Path,
+    record: Option<&Path>,
     progress: &dyn Fn(DemoStep),
 ) -> Result<DemoOutcome, SlamError> {
     let world_name = world;
@@ -134,9 +135,17 @@ pub fn run_demo(
         methods.push(plot_flight_errors(m, &run.ground_truth, out)?);
     }
 
-    let vo = run_simulated_rgbd(&sim.world, seed, &out.join("rgbd"), || {
-        progress(DemoStep::CameraFrame)
-    })?;
+    let vo = run_simulated_rgbd(
+        &sim.world,
+        seed,
+        &out.join("rgbd"),
+        record.is_some(),
+        || progress(DemoStep::CameraFrame),
+    )?;
+    let recorded = match record {
+        Some(path) => Some(record_demo(path, &run, &flight, &vo)?),
+        None => None,
+    };
     write_tum(&out.join("trajectory_vo.tum"), &vo.trajectory)?;
     let vo_plot = out.join("errors_vo.png");
     let a = &vo.ate;
@@ -150,7 +159,6 @@ pub fn run_demo(
         title: "RGB-D visual odometry",
         mean_m: a.stats.mean,
         max_m: a.stats.max,
-        plot: vo_plot,
     });
 
     let stats = session.stats();
@@ -197,8 +205,9 @@ pub fn run_demo(
             "frames": vo.stats,
             "timings_ms": vo.timings.summary(),
         },
+        "recording": recorded.map(|messages| json!({ "file": record, "messages": messages })),
     });
-    let outcome = DemoOutcome {
+    let mut outcome = DemoOutcome {
         report,
         methods,
         layer_choice: kidnapped::summary(layer_loc.as_ref()),
@@ -212,15 +221,7 @@ pub fn run_demo(
         sim.duration_s(),
         outcome.path_length_m,
     );
-    let title = format!("slamkit demo: {world_name} world");
-    write_html(
-        &out.join("report.html"),
-        &title,
-        &intro,
-        &outcome,
-        out,
-        &layer_files,
-    )?;
+    outcome.report["summary"] = json!(format!("{intro}\n\n{}", outcome.summary()));
     Ok(outcome)
 }
 
@@ -243,62 +244,5 @@ fn plot_flight_errors(
         title: m.title,
         mean_m: m.mean_m(),
         max_m: m.max_m(),
-        plot,
     })
-}
-
-/// Writes `report.html`: the error table, the error plots and the maps on one page.
-fn write_html(
-    path: &Path,
-    title: &str,
-    intro: &str,
-    outcome: &DemoOutcome,
-    out: &Path,
-    layers: &[LayerFile],
-) -> Result<(), SlamError> {
-    let mut page = HtmlReport::new(title);
-    page.paragraph(intro);
-    page.heading(2, "Position error against ground truth");
-    let rows: Vec<Vec<String>> = outcome
-        .methods
-        .iter()
-        .map(|m| {
-            let (mean, max) = (m.mean_m, m.max_m);
-            vec![
-                m.title.to_string(),
-                format!("{mean:.3}"),
-                format!("{max:.3}"),
-            ]
-        })
-        .collect();
-    page.table(&["method", "mean [m]", "max [m]"], &rows);
-    page.paragraph(&format!("Kidnapped drone, {}", outcome.layer_choice));
-    for m in &outcome.methods {
-        page.heading(3, m.title);
-        page.image(&format!("{} errors", m.title), &m.plot, true)?;
-    }
-    let maps = [
-        ("Map of all layers (layered ICP-SLAM)", "map.png"),
-        ("Particle-filter SLAM map", "map_pf.png"),
-    ];
-    for (title, png) in maps.map(|(t, f)| (t, out.join(f))) {
-        if png.exists() {
-            page.heading(2, title);
-            page.image(title, &png, false)?;
-        }
-    }
-    page.heading(2, &format!("Maps per height layer ({})", layers.len()));
-    let figures: Vec<Figure> = layers
-        .iter()
-        .map(|l| Figure {
-            alt: format!("layer {}", l.layer),
-            png: l.png.clone(),
-            caption: format!(
-                "layer {}: {:.2}–{:.2} m, {} scans",
-                l.layer, l.z_range_m[0], l.z_range_m[1], l.scans
-            ),
-        })
-        .collect();
-    page.gallery(&figures)?;
-    Ok(page.write(path)?)
 }

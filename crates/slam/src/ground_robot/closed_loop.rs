@@ -25,6 +25,7 @@ use std::time::Instant;
 
 use super::{plan_inflated, CameraStats, GroundRobotNav, GroundRobotNavConfig, MountedCamera};
 use crate::map_file::MapFile;
+use crate::record::NavRecording;
 use crate::SlamError;
 
 /// Frame rate of the camera in the loop \[Hz\] (the sensor gives 30). Measured on office
@@ -175,7 +176,8 @@ pub struct NavOutcome {
     pub camera_stats: CameraStats,
     /// Every frame: true and estimated pose, what VO made of it.
     pub frames: Vec<FrameRecord>,
-    /// Per-stage wall times: `render`, `vo`, `map`, `plan`, `track` (ms).
+    /// Per-stage wall times: `render`, `vo`, `map`, `plan`, `track`, and `record` when
+    /// recording (ms).
     pub timings: StageTimings,
 }
 
@@ -295,16 +297,18 @@ impl Scores {
 }
 
 /// Drives the simulated robot from the start of `world`'s drive path to `goal` (world frame);
-/// see the module documentation.
+/// see the module documentation. With a `recording`, every step goes into it as the loop runs
+/// (the caller finishes it with the outcome's map).
 ///
 /// # Errors
-/// A bad configuration, a goal outside the world or inside an obstacle, or no path on the true
-/// map from start to goal.
+/// A bad configuration, a goal outside the world or inside an obstacle, no path on the true
+/// map from start to goal, or a recording that cannot be written.
 pub fn run_nav_loop(
     world: World,
     goal: Point2<f64>,
     seed: u64,
     config: &NavLoopConfig,
+    mut recording: Option<&mut NavRecording>,
 ) -> Result<NavOutcome, SlamError> {
     config.validate()?;
     let mut robot = GroundRobot::new(world, &config.sim, seed)?;
@@ -337,20 +341,28 @@ pub fn run_nav_loop(
     for index in 0.. {
         t = index as f64 / rate_hz;
         let started = Instant::now();
-        let frame = robot.rgbd_frame(index, t);
+        let observation = Observation::Rgbd(robot.rgbd_frame(index, t));
         timings.record_since("render", started);
-        let Some(outcome) = nav.process(Observation::Rgbd(frame)) else {
+        if let Some(r) = recording.as_deref_mut() {
+            let started = Instant::now();
+            r.image(&observation)?;
+            timings.record_since("record", started);
+        }
+        let Some(outcome) = nav.process(observation) else {
             return Err(SlamError::Config(
                 "the simulated camera's frames are not the session's".into(),
             ));
         };
         let truth = robot.truth();
         let (estimate, status) = (outcome.world_from_base, outcome.status);
-        scores.record_poses(
-            t,
-            robot.at_base_height(&truth),
-            estimate.as_ref().map(|p| robot.at_base_height(p)),
-        );
+        let truth_3d = robot.at_base_height(&truth);
+        let estimate_3d = estimate.as_ref().map(|p| robot.at_base_height(p));
+        if let Some(r) = recording.as_deref_mut() {
+            let started = Instant::now();
+            r.step(t, &truth_3d, estimate_3d.as_ref(), &nav)?;
+            timings.record_since("record", started);
+        }
+        scores.record_poses(t, truth_3d, estimate_3d);
         scores.frames.push(FrameRecord {
             t_s: t,
             truth,

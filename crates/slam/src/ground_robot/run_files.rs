@@ -8,18 +8,27 @@ use serde_json::{json, Value};
 use slamkit_core::Pose2;
 use slamkit_io::image_writer::save_rgb_png;
 use slamkit_io::write_tum;
+use slamkit_map::grid_io::{save_image_yaml, tri_grid_image};
 use slamkit_vo::FrameStatus;
 use std::path::Path;
 
 impl NavOutcome {
     /// Writes the run's files into `out`: `trajectory.tum` (the camera session's estimate),
     /// `groundtruth.tum`, `map.png` (the floor grid with the path driven, [`Self::map_image`]),
-    /// `map.skmap` (the map a later run can plan and localise in) and `frames.csv`
+    /// `map.pgm` + `map.yaml` (the floor grid as ROS `map_server` reads it; the page of the
+    /// run places `map.png` by it), `map.skmap` (the map a later run can plan and localise
+    /// in) and `frames.csv`
     /// ([`Self::frames_csv`]).
     pub fn write_run_files(&self, out: &Path, config: &NavLoopConfig) -> Result<(), SlamError> {
         write_tum(&out.join("trajectory.tum"), &self.estimate)?;
         write_tum(&out.join("groundtruth.tum"), &self.ground_truth)?;
         save_rgb_png(&out.join("map.png"), &self.map_image(config))?;
+        let grid = &self.grid;
+        save_image_yaml(
+            &tri_grid_image(grid),
+            grid.resolution_m(),
+            &out.join("map.yaml"),
+        )?;
         let map_path = out.join("map.skmap");
         self.map
             .save(&map_path)

@@ -24,7 +24,7 @@ pub const IMAGE_TOPIC: &str = "/camera/image";
 const JPEG_QUALITY: u8 = 85;
 
 /// An encoded image and the time of its frame \[s\].
-type EncodedImage = (f64, Vec<u8>);
+pub(crate) type EncodedImage = (f64, Vec<u8>);
 
 /// A [`VisualSlam`](crate::VisualSlam) run being recorded to an MCAP file.
 pub struct VisualRecording {
@@ -134,7 +134,7 @@ impl VisualRecording {
 
 /// The frame's colour image (RGB-D) or left image (stereo) as JPEG, with its time; `None` for
 /// other observations or an image the encoder refuses.
-fn encode_jpeg(observation: &Observation) -> Option<EncodedImage> {
+pub(crate) fn encode_jpeg(observation: &Observation) -> Option<EncodedImage> {
     use image::codecs::jpeg::JpegEncoder;
     use image::ExtendedColorType;
     let mut bytes = Vec::new();

@@ -1,8 +1,9 @@
 //! `report.html` of a run, built from what the run wrote in its output folder and from its
-//! `report.json`, the same for every command (`lidar`, `vo`, `nav`, `map merge`, ...): the
-//! numbers that matter, the map with the trajectories drawn on it (zoomable), the error over
-//! time against ground truth or the benchmark's relations, the per-stage timings, and the
-//! other pictures of the folder.
+//! `report.json`, the same for every command (`lidar`, `vo`, `nav`, `map merge`, `demo`, ...):
+//! the run's own summary when its report has one (`summary`, the table `demo` prints), the
+//! numbers that matter, the map with the trajectories (and the ground truth) drawn on it
+//! (zoomable), the error over time against ground truth or the benchmark's relations, the
+//! per-stage timings, and the other pictures of the folder.
 //!
 //! A part that cannot be drawn (a trajectory file the run did not write, a relations file
 //! that is gone) is said on the page instead; only writing the page can fail.
@@ -50,6 +51,12 @@ pub fn write_run_page(dir: &Path, title: &str, report: &Value) -> Result<(), Sla
             .as_str()
             .map_or_else(|| input.to_string(), str::to_owned);
         page.paragraph(&format!("Input: <code>{}</code>", escape(&text)));
+    }
+    if let Some(summary) = report.get("summary").and_then(Value::as_str) {
+        page.raw(&format!(
+            "<pre style=\"white-space: pre-wrap\">{}</pre>",
+            escape(summary)
+        ));
     }
     let rows = summary_rows(report);
     if !rows.is_empty() {
@@ -101,6 +108,9 @@ fn map_section(
             }
         }
         _ => {
+            if let (Some(_), Some(Ok(truth))) = (&grid, truth) {
+                lines.push(("ground truth".into(), TRUTH, xy_of(truth)));
+            }
             for (i, (name, trajectory)) in trajectories(dir).into_iter().enumerate() {
                 match trajectory {
                     Ok(t) => lines.push((name, PALETTE[i % PALETTE.len()], xy_of(&t))),
@@ -285,7 +295,8 @@ fn summary_rows(report: &Value) -> Vec<Vec<String>> {
 }
 
 /// A row per stage of every `timings_ms` object in `report` (its path before the stage's name
-/// when nested, e.g. `vo.track`).
+/// when nested, e.g. `vo.track`; a group of stages inside one, e.g. `timings_ms.icp`, the
+/// same).
 fn timing_rows(report: &Value) -> Vec<Vec<String>> {
     let mut rows = Vec::new();
     collect_timings(report, "", &mut rows);
@@ -298,27 +309,33 @@ fn collect_timings(value: &Value, prefix: &str, rows: &mut Vec<Vec<String>>) {
     };
     for (key, child) in object {
         if key == "timings_ms" {
-            for (stage, t) in child.as_object().into_iter().flatten() {
-                let number = |k: &str| t.get(k).and_then(Value::as_f64);
-                let (Some(count), Some(median), Some(p95), Some(total)) = (
-                    number("count"),
-                    number("median_ms"),
-                    number("p95_ms"),
-                    number("total_ms"),
-                ) else {
-                    continue;
-                };
-                rows.push(vec![
-                    escape(&format!("{prefix}{stage}")),
-                    format!("{count:.0}"),
-                    format!("{median:.2}"),
-                    format!("{p95:.2}"),
-                    format!("{:.1}", total / 1000.0),
-                ]);
-            }
+            timing_group(child, prefix, rows);
         } else if key != "config" {
             collect_timings(child, &format!("{prefix}{key}."), rows);
         }
+    }
+}
+
+/// The stages of a `timings_ms` object, and of the groups of stages in it.
+fn timing_group(value: &Value, prefix: &str, rows: &mut Vec<Vec<String>>) {
+    for (stage, t) in value.as_object().into_iter().flatten() {
+        let number = |k: &str| t.get(k).and_then(Value::as_f64);
+        let (Some(count), Some(median), Some(p95), Some(total)) = (
+            number("count"),
+            number("median_ms"),
+            number("p95_ms"),
+            number("total_ms"),
+        ) else {
+            timing_group(t, &format!("{prefix}{stage}."), rows);
+            continue;
+        };
+        rows.push(vec![
+            escape(&format!("{prefix}{stage}")),
+            format!("{count:.0}"),
+            format!("{median:.2}"),
+            format!("{p95:.2}"),
+            format!("{:.1}", total / 1000.0),
+        ]);
     }
 }
 
@@ -357,7 +374,9 @@ fn scalar(value: &Value) -> Option<String> {
     }
 }
 
-/// `map.png` and where `map.yaml` puts it; `None` without them.
+/// `map.png` and where `map.yaml` puts it; `None` without them. The picture may be drawn
+/// larger than the grid (`slamkit nav`'s is three pixels a cell): its pixel size is the
+/// grid's scaled by the width of the YAML's image over the picture's.
 fn read_grid(dir: &Path) -> Option<Result<GridBytes, String>> {
     let (png, yaml) = (dir.join("map.png"), dir.join("map.yaml"));
     if !(png.is_file() && yaml.is_file()) {
@@ -370,12 +389,16 @@ fn read_grid(dir: &Path) -> Option<Result<GridBytes, String>> {
         let (width_px, height_px) =
             image::image_dimensions(&png).map_err(|e| format!("{}: {e}", png.display()))?;
         let bytes = std::fs::read(&png).map_err(|e| format!("{}: {e}", png.display()))?;
+        let grid_width = std::fs::read(dir.join(&meta.image))
+            .ok()
+            .and_then(|pgm| slamkit_map::grid_io::parse_pgm(&pgm).ok())
+            .map_or(width_px as usize, |(width, _, _)| width);
         Ok(GridBytes {
             png: bytes,
             width_px,
             height_px,
             origin_m: [meta.origin[0], meta.origin[1]],
-            resolution_m: meta.resolution_m,
+            resolution_m: meta.resolution_m * grid_width as f64 / f64::from(width_px.max(1)),
         })
     };
     Some(read())

@@ -9,6 +9,7 @@
 //! it) at [`DEMO_CAMERA_RATE_HZ`], over the first [`DEMO_VO_SECONDS`] of the flight.
 
 use super::{rig_of, run, PointMapping, RunOptions, VisualSlam, VisualStats};
+use crate::record::{encode_jpeg, EncodedImage};
 use crate::SlamError;
 use slamkit_core::camera::{Distortion, Intrinsics, PinholeCamera};
 use slamkit_core::{StageTimings, Trajectory};
@@ -30,7 +31,8 @@ pub const DEMO_VO_SECONDS: f64 = 40.0;
 /// What the simulated VO run produced.
 #[derive(Debug)]
 pub struct SimulatedVo {
-    /// The estimated camera trajectory.
+    /// The estimated camera trajectory, in the world's frame: anchored at the camera's true
+    /// pose at its first frame, as a robot that knows where it starts would place it.
     pub trajectory: Trajectory,
     /// ATE after SE(3) alignment: statistics, per-pose errors, aligned positions.
     pub ate: AteResult,
@@ -40,6 +42,8 @@ pub struct SimulatedVo {
     pub timings: StageTimings,
     /// The camera used.
     pub camera: RgbdCameraConfig,
+    /// Every frame's colour image as JPEG with its time, when asked for (a recording).
+    pub images: Vec<EncodedImage>,
 }
 
 /// The demo's camera: the default one scaled by [`DEMO_CAMERA_SCALE`] (pixel centres kept at
@@ -68,11 +72,14 @@ pub fn demo_camera() -> RgbdCameraConfig {
 
 /// Simulates the [`demo_camera`] on the first [`DEMO_VO_SECONDS`] of the flight of `world`
 /// with `seed`, writes it to `dir` (a TUM RGB-D folder), runs RGB-D VO on it (calling
-/// `progress` after each frame) and scores it against the camera's true trajectory.
+/// `progress` after each frame) and scores it against the camera's true trajectory. With
+/// `keep_images`, the frames' colour images come back as JPEG too (encoded on the reading
+/// thread, off the tracker's).
 pub fn run_simulated_rgbd(
     world: &World,
     seed: u64,
     dir: &Path,
+    keep_images: bool,
     progress: impl Fn(),
 ) -> Result<SimulatedVo, SlamError> {
     let camera = demo_camera();
@@ -96,12 +103,19 @@ pub fn run_simulated_rgbd(
     let dataset = Dataset::Rgbd(sequence);
     let mut session = VisualSlam::new(&VoConfig::default(), rig_of(&dataset))?
         .with_point_map(PointMapping::Off)?;
-    let result = run(
-        &mut session,
-        dataset.observations(),
-        RunOptions::default(),
-        |_| progress(),
-    )?;
+    let (sender, encoded) = crossbeam_channel::unbounded();
+    let source = dataset.observations().inspect(move |item| {
+        if let Some(jpeg) = item
+            .as_ref()
+            .ok()
+            .filter(|_| keep_images)
+            .and_then(encode_jpeg)
+        {
+            // The receiver lives until the run's end.
+            let _ = sender.send(jpeg);
+        }
+    });
+    let result = run(&mut session, source, RunOptions::default(), |_| progress())?;
     let session = session.finish()?;
     timings.merge(&result.timings);
     timings.merge(&session.timings);
@@ -112,10 +126,29 @@ pub fn run_simulated_rgbd(
         Alignment::Se3,
     )?;
     Ok(SimulatedVo {
-        trajectory: result.trajectory,
+        trajectory: anchored(&truth, &result.trajectory),
         ate,
         stats: session.stats,
         timings,
         camera,
+        images: encoded.try_iter().collect(),
     })
+}
+
+/// `estimate` moved into `truth`'s frame so that its first pose is the true one at that time
+/// (SE(3) alignment for ATE is unchanged by a rigid move); as it was when the truth does not
+/// cover that time.
+fn anchored(truth: &Trajectory, estimate: &Trajectory) -> Trajectory {
+    let Some(first) = estimate.poses.first() else {
+        return estimate.clone();
+    };
+    let Some(true_first) = truth.interpolate(first.timestamp) else {
+        return estimate.clone();
+    };
+    let world_from_estimate = true_first * first.pose.inverse();
+    let mut moved = Trajectory::new();
+    for p in &estimate.poses {
+        moved.push(p.timestamp, world_from_estimate * p.pose);
+    }
+    moved
 }
