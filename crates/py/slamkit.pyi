@@ -83,6 +83,10 @@ class Map:
 class LidarLog:
     """The laser scans (with odometry) of a log."""
 
+    description: Optional[str]
+    """What was read from a bag (topics, counts, mounting); None for a CARMEN log."""
+    warnings: list[str]
+    """Damage worth a warning: timestamps stepping back, a tilted laser, skipped messages."""
     def __len__(self) -> int: ...
     def slice(self, start: int, stop: int) -> "LidarLog":
         """The scans ``start..stop`` as a log of their own."""
@@ -94,6 +98,16 @@ class LidarLog:
 
 def read_carmen(path: _Path) -> LidarLog:
     """Reads a CARMEN log (plain or gzip)."""
+
+def read_lidar_log(
+    path: _Path, scan_topic: Optional[str] = None, odom_topic: Optional[str] = None
+) -> LidarLog:
+    """A CARMEN log or a ROS 1 / ROS 2 bag (``.bag``, MCAP, ``.db3``, or a ROS 2 bag folder);
+    topics found by type when there is one of each; the laser's mounting from ``/tf_static``."""
+
+def bag_info(path: _Path) -> dict[str, Any]:
+    """``slamkit bag info --json``: ``format, topics`` (``topic, message_type, messages, ...``),
+    ``messages, start_s, end_s, duration_s, ...``."""
 
 class LidarSlam:
     """2D lidar SLAM: ``method`` "icp" (ICP-SLAM) or "rbpf" (particle filter)."""
@@ -136,12 +150,88 @@ class LidarSlam:
     def save(self, path: _Path) -> None:
         """Writes the map as a ``.skmap`` file, atomically."""
 
+# --- drone -------------------------------------------------------------------------------
+
+class DroneSlam:
+    """Layered 2D lidar SLAM for a drone, the layers switched by up/down range finders; with
+    ``particles``, the particle filter on the layered increments too."""
+
+    def __init__(
+        self,
+        particles: Optional[int] = None,
+        seed: Optional[int] = None,
+        profile: Optional[str] = None,
+        config: Optional[_Path] = None,
+    ) -> None: ...
+    @staticmethod
+    def localise(
+        map: _Path, profile: Optional[str] = None, config: Optional[_Path] = None
+    ) -> "DroneSlam":
+        """Localisation in a drone's saved map (not changed), found by global search."""
+    @staticmethod
+    def resume(
+        map: _Path, profile: Optional[str] = None, config: Optional[_Path] = None
+    ) -> "DroneSlam":
+        """Continues a drone's saved map once the drone is found in it."""
+    def push_scan(
+        self,
+        timestamp: float,
+        ranges: npt.NDArray[np.float64],
+        angle_min: float,
+        angle_increment: float,
+        max_range: float,
+        odometry: Optional[Tuple[float, float, float]] = None,
+        base_from_laser: Tuple[float, float, float] = (0.0, 0.0, 0.0),
+    ) -> dict[str, Any]:
+        """One scan in (push the readings up to its time first); the update out:
+        ``timestamp, pose, height, layer, status, keyframes_added, ...``."""
+    def push_range(
+        self, timestamp: float, up: Optional[float] = None, down: Optional[float] = None
+    ) -> None:
+        """Distances to the ceiling (up) and the floor (down) [m]; None: no reading."""
+    def push_attitude(
+        self, timestamp: float, roll: float, pitch: float, gyro_yaw: Optional[float] = None
+    ) -> None:
+        """Roll and pitch [rad] and the gyro's integrated heading (any origin)."""
+    def push_flow(
+        self,
+        timestamp: float,
+        integration: float,
+        velocity: Optional[Tuple[float, float]] = None,
+    ) -> None:
+        """Optical flow: mean body-frame velocity (forward, left) [m/s] over ``integration`` s."""
+    def run(
+        self,
+        log: LidarLog,
+        ranges: _Path,
+        imu: Optional[_Path] = None,
+        flow: Optional[_Path] = None,
+    ) -> dict[str, int]:
+        """A recorded flight: ``log``'s scans with the CSV files; the readings per file."""
+    def trajectory(self) -> _Trajectory: ...
+    def pf_trajectory(self) -> Optional[_Trajectory]: ...
+    def layers(self) -> list[dict[str, Any]]:
+        """``layer, z_range, scans`` of every height layer mapped."""
+    def grid(self, layer: Optional[int] = None) -> Grid:
+        """One layer's grid, or every layer's with None."""
+    def stats(self) -> dict[str, Any]: ...
+    def save(self, path: _Path) -> None:
+        """Writes the map as a ``.skmap`` file, atomically."""
+
 # --- cameras -------------------------------------------------------------------------------
 
 class Dataset:
-    """An RGB-D or stereo folder: ``format`` "tum", "kitti", "7scenes", "redwood", "euroc" or None."""
+    """An RGB-D or stereo folder, or an RGB-D camera's bag: ``format`` "tum", "kitti",
+    "7scenes", "redwood", "euroc", "rosbag" or None (told from the path)."""
 
-    def __init__(self, path: _Path, format: Optional[str] = None) -> None: ...
+    def __init__(
+        self,
+        path: _Path,
+        format: Optional[str] = None,
+        rgb_topic: Optional[str] = None,
+        depth_topic: Optional[str] = None,
+        camera_info_topic: Optional[str] = None,
+    ) -> None: ...
     def __len__(self) -> int: ...
     def ground_truth(self) -> Optional[_Trajectory]: ...
 

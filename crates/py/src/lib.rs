@@ -2,9 +2,11 @@
 //!
 //! A thin layer over the libraries, so that a Python program gets what the CLI gets:
 //!
-//! * [`lidar`]: `read_carmen` and `LidarSlam` (ICP-SLAM or the particle filter; a new map,
-//!   localisation in a saved one, or its continuation).
-//! * [`visual`]: `Dataset` (the RGB-D and stereo folder readers) and `VisualSlam`.
+//! * [`lidar`]: `read_carmen`, `read_lidar_log` (a CARMEN file or a ROS 1 / ROS 2 bag),
+//!   `bag_info`, and `LidarSlam` (ICP-SLAM or the particle filter; a new map, localisation in
+//!   a saved one, or its continuation).
+//! * [`drone`]: `DroneSlam`, layered 2D lidar SLAM switched by up/down range finders.
+//! * [`visual`]: `Dataset` (the RGB-D and stereo folder readers, RGB-D bags) and `VisualSlam`.
 //! * [`maps`]: `Map`, a `.skmap` file: its description, its planning grid as a numpy array,
 //!   its export.
 //! * [`metrics`]: `read_trajectory`, `read_relations`, `ate`, `rpe`, `relations_error`.
@@ -17,6 +19,7 @@
 use pyo3::prelude::*;
 
 pub mod convert;
+pub mod drone;
 pub mod lidar;
 pub mod maps;
 pub mod metrics;
@@ -51,6 +54,7 @@ fn slamkit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("SlamkitError", m.py().get_type::<SlamkitError>())?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     lidar::register(m)?;
+    drone::register(m)?;
     visual::register(m)?;
     maps::register(m)?;
     metrics::register(m)?;

@@ -9,6 +9,7 @@ use nalgebra::{Isometry2, Vector2};
 use numpy::{PyArray1, PyArray2, PyReadonlyArray1};
 use pyo3::prelude::*;
 use slamkit_core::{LaserScan, Pose2};
+use slamkit_io::bag::ScanTopics;
 use slamkit_io::carmen::CarmenLog;
 use slamkit_map::{OccupancyGridConfig, TriGrid};
 use slamkit_slam::{LidarMap, LidarMethod, LidarSlam, LidarSlamConfig, Session, Update};
@@ -16,6 +17,8 @@ use std::path::PathBuf;
 
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(read_carmen, m)?)?;
+    m.add_function(wrap_pyfunction!(read_lidar_log, m)?)?;
+    m.add_function(wrap_pyfunction!(bag_info, m)?)?;
     m.add_class::<LidarLog>()?;
     m.add_class::<PyLidarSlam>()?;
     Ok(())
@@ -25,6 +28,22 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
 #[pyclass(module = "slamkit", frozen)]
 pub struct LidarLog {
     pub(crate) log: CarmenLog,
+    /// What was read from a bag (topics, counts, the laser's mounting); None for a CARMEN log.
+    #[pyo3(get)]
+    description: Option<String>,
+    /// Damage worth a warning: timestamps stepping back, a tilted laser, skipped messages.
+    #[pyo3(get)]
+    warnings: Vec<String>,
+}
+
+impl LidarLog {
+    fn of(log: CarmenLog) -> Self {
+        Self {
+            log,
+            description: None,
+            warnings: Vec::new(),
+        }
+    }
 }
 
 #[pymethods]
@@ -50,11 +69,10 @@ impl LidarLog {
                 self.log.scans.len()
             ))
         })?;
-        let log = CarmenLog {
+        Ok(LidarLog::of(CarmenLog {
             scans: scans.to_vec(),
             ..CarmenLog::default()
-        };
-        Ok(LidarLog { log })
+        }))
     }
 
     /// Each scan's time \[s\].
@@ -106,7 +124,48 @@ fn read_carmen(py: Python<'_>, path: PathBuf) -> PyResult<LidarLog> {
     let log = py
         .detach(|| slamkit_io::carmen::read_carmen(&path))
         .map_err(to_py_err)?;
-    Ok(LidarLog { log })
+    Ok(LidarLog::of(log))
+}
+
+/// Reads a 2D lidar log, whichever the path holds: a CARMEN file (plain or gzip) or a ROS 1
+/// / ROS 2 bag (a `.bag`, an MCAP or `.db3` file, or a ROS 2 bag's folder), as `slamkit lidar`
+/// does. In a bag the `sensor_msgs/LaserScan` and `nav_msgs/Odometry` topics are found by
+/// type when there is one of each (`scan_topic`, `odom_topic` choose), the laser's mounting
+/// comes from `/tf_static`.
+#[pyfunction]
+#[pyo3(signature = (path, scan_topic = None, odom_topic = None))]
+fn read_lidar_log(
+    py: Python<'_>,
+    path: PathBuf,
+    scan_topic: Option<String>,
+    odom_topic: Option<String>,
+) -> PyResult<LidarLog> {
+    let topics = ScanTopics {
+        scan: scan_topic,
+        odom: odom_topic,
+    };
+    let file = py
+        .detach(|| slamkit_io::lidar_log::read_lidar_log(&path, &topics))
+        .map_err(to_py_err)?;
+    Ok(LidarLog {
+        log: file.log,
+        description: file.description,
+        warnings: file.warnings,
+    })
+}
+
+/// What a ROS 1 or ROS 2 bag holds, as `slamkit bag info --json` prints it: `format`,
+/// `topics` (each with `topic`, `message_type`, `messages`, ...), `messages`, `start_s`, `end_s`,
+/// `duration_s`, ...
+#[pyfunction]
+fn bag_info(py: Python<'_>, path: PathBuf) -> PyResult<Py<PyAny>> {
+    let info = py
+        .detach(|| slamkit_io::bag::open(&path).and_then(|mut bag| bag.summary()))
+        .map_err(to_py_err)?;
+    let mut value = serde_json::to_value(&info)
+        .map_err(|e| crate::SlamkitError::new_err(format!("{}: {e}", path.display())))?;
+    value["duration_s"] = serde_json::json!(info.duration_s());
+    to_python(py, &value)
 }
 
 /// `(x, y, yaw)`: what `push_scan` takes for odometry and mounting.
@@ -223,17 +282,15 @@ impl PyLidarSlam {
         odometry: Option<(f64, f64, f64)>,
         base_from_laser: (f64, f64, f64),
     ) -> PyResult<Py<PyAny>> {
-        let scan = LaserScan {
+        let scan = laser_scan(
             timestamp,
-            angle_min_rad: angle_min,
-            angle_increment_rad: angle_increment,
-            ranges_m: ranges.as_array().to_vec(),
-            max_range_m: max_range,
-            odometry: odometry.map(|(x, y, yaw)| pose2(x, y, yaw)),
-            base_from_laser: pose2(base_from_laser.0, base_from_laser.1, base_from_laser.2),
-        };
+            &ranges,
+            (angle_min, angle_increment, max_range),
+            odometry,
+            base_from_laser,
+        );
         let update = py.detach(|| self.session.push_scan(scan));
-        update_dict(py, &update)
+        to_python(py, &update_value(&update))
     }
 
     /// Pushes every scan of `log` in order, the GIL released; returns the number of scans.
@@ -284,20 +341,39 @@ impl PyLidarSlam {
     }
 }
 
-/// An [`Update`] as a dict, the pose planar.
-fn update_dict(py: Python<'_>, update: &Update) -> PyResult<Py<PyAny>> {
+/// A scan from `push_scan`'s arguments: `beams` is `(angle_min, angle_increment, max_range)`,
+/// poses `(x, y, yaw)`.
+pub(crate) fn laser_scan(
+    timestamp: f64,
+    ranges: &PyReadonlyArray1<'_, f64>,
+    (angle_min, angle_increment, max_range): (f64, f64, f64),
+    odometry: Option<(f64, f64, f64)>,
+    base_from_laser: (f64, f64, f64),
+) -> LaserScan {
+    LaserScan {
+        timestamp,
+        angle_min_rad: angle_min,
+        angle_increment_rad: angle_increment,
+        ranges_m: ranges.as_array().to_vec(),
+        max_range_m: max_range,
+        odometry: odometry.map(|(x, y, yaw)| pose2(x, y, yaw)),
+        base_from_laser: pose2(base_from_laser.0, base_from_laser.1, base_from_laser.2),
+    }
+}
+
+/// An [`Update`] as a dict's JSON, the pose planar (`(x, y, yaw)`).
+pub(crate) fn update_value(update: &Update) -> serde_json::Value {
     let pose = update.pose.map(|p| {
         let t = p.translation.vector;
         let (_, _, yaw) = p.rotation.euler_angles();
         (t.x, t.y, yaw)
     });
-    let value = serde_json::json!({
+    serde_json::json!({
         "timestamp": update.timestamp,
         "pose": pose,
         "status": update.status,
         "keyframes_added": update.map.keyframes_added,
         "loop_closures": update.map.loop_closures,
         "map_moved": update.map.map_moved,
-    });
-    to_python(py, &value)
+    })
 }

@@ -6,7 +6,7 @@ use crate::to_py_err;
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
-use slamkit_map::{Occupancy, TriGrid};
+use slamkit_map::TriGrid;
 use slamkit_slam::map_file::info::MapInfo;
 use slamkit_slam::map_file::{export, MapFile};
 use std::path::PathBuf;
@@ -34,15 +34,7 @@ impl Grid {
     /// `grid` as numpy cells.
     pub fn from_tri_grid(py: Python<'_>, grid: &TriGrid) -> PyResult<Self> {
         let (width, height) = (grid.width(), grid.height());
-        let cells = grid
-            .cells()
-            .iter()
-            .map(|c| match c {
-                Occupancy::Free => 0,
-                Occupancy::Occupied => 100,
-                Occupancy::Unknown => -1,
-            })
-            .collect();
+        let cells = grid.cells().iter().map(|c| c.ros_value()).collect();
         let data = Array2::from_shape_vec((height, width), cells)
             .map_err(|e| crate::SlamkitError::new_err(format!("a {width} × {height} grid: {e}")))?;
         let origin = grid.origin_m();

@@ -6,6 +6,7 @@ use crate::convert::{one_of, to_python, trajectory_to_array};
 use crate::{to_py_err, SlamkitError};
 use numpy::PyArray2;
 use pyo3::prelude::*;
+use slamkit_io::bag::RgbdTopics;
 use slamkit_io::{Dataset as IoDataset, DatasetFormat};
 use slamkit_slam::visual::{self, PointMapping, RunOptions, VisualRun};
 use slamkit_slam::{Session, VisualSlam as Session_};
@@ -18,8 +19,10 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     Ok(())
 }
 
-/// A dataset folder: `format` one of `"tum"`, `"kitti"`, `"7scenes"`, `"redwood"`, `"euroc"`,
-/// or None to tell it from the folder's content.
+/// A dataset folder, or a ROS 1 / ROS 2 bag of an RGB-D camera: `format` one of `"tum"`,
+/// `"kitti"`, `"7scenes"`, `"redwood"`, `"euroc"`, `"rosbag"`, or None to tell it from the
+/// path. In a bag the colour, depth and `CameraInfo` topics are found by type and encoding
+/// when there is one of each (`rgb_topic`, `depth_topic`, `camera_info_topic` choose).
 #[pyclass(module = "slamkit", frozen)]
 pub struct Dataset {
     dir: PathBuf,
@@ -30,8 +33,15 @@ pub struct Dataset {
 #[pymethods]
 impl Dataset {
     #[new]
-    #[pyo3(signature = (path, format = None))]
-    fn open(py: Python<'_>, path: PathBuf, format: Option<&str>) -> PyResult<Self> {
+    #[pyo3(signature = (path, format = None, rgb_topic = None, depth_topic = None, camera_info_topic = None))]
+    fn open(
+        py: Python<'_>,
+        path: PathBuf,
+        format: Option<&str>,
+        rgb_topic: Option<String>,
+        depth_topic: Option<String>,
+        camera_info_topic: Option<String>,
+    ) -> PyResult<Self> {
         let format = match format {
             Some(name) => name.parse().map_err(to_py_err)?,
             None => slamkit_io::layout::detect_layout(&path)
@@ -43,8 +53,22 @@ impl Dataset {
                     ))
                 })?,
         };
+        let topics = RgbdTopics {
+            rgb: rgb_topic,
+            depth: depth_topic,
+            camera_info: camera_info_topic,
+        };
+        if format != DatasetFormat::RosBag && topics != RgbdTopics::default() {
+            return Err(SlamkitError::new_err(format!(
+                "the topic options apply to bags; {} is not one",
+                path.display()
+            )));
+        }
         let dataset = py
-            .detach(|| IoDataset::open(&path, format))
+            .detach(|| match format {
+                DatasetFormat::RosBag => IoDataset::open_bag(&path, &topics),
+                _ => IoDataset::open(&path, format),
+            })
             .map_err(|e| SlamkitError::new_err(format!("opening {}: {e}", path.display())))?;
         Ok(Self {
             dir: path,
