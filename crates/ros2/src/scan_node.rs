@@ -1,7 +1,7 @@
 //! What the planar lidar nodes share (`slamkit ros2 lidar` and `slamkit ros2 drone`): the
 //! DDS readers and writers, the reader thread, the map thread, and the session thread that
 //! ties scans to odometry ([`crate::pairing`]), applies the laser's mounting from
-//! `/tf_static`, feeds the session ([`ScanSession`]) and publishes its pose, path and map.
+//! `/tf_static`, feeds the session (`ScanSession`) and publishes its pose, path and map.
 //!
 //! Three threads: one takes samples off the DDS readers as they come (so a slow scan match
 //! never overflows a reader's history and drops scans), one runs the session and publishes,
@@ -584,7 +584,7 @@ impl<'a, S: ScanSession> Core<'a, S> {
     fn scan_stamp(&mut self, t: f64) -> (Option<Instant>, Time) {
         match self.received.iter().position(|(s, _, _)| *s == t) {
             Some(i) => {
-                let found = self.received.drain(..=i).last();
+                let found = self.received.drain(..=i).next_back();
                 found.map_or((None, Time::from_secs_f64(t)), |(_, r, s)| (Some(r), s))
             }
             None => (None, Time::from_secs_f64(t)),
