@@ -55,6 +55,17 @@ impl Observation {
             Observation::Stereo(_) => "stereo",
         }
     }
+
+    /// Whether this is a frame a session estimates a pose for (a scan or an image frame),
+    /// rather than a reading it stores for the next frame: at equal timestamps frames go
+    /// after readings ([`time_ordered`], and the collator of live sources), so a frame is
+    /// matched with the readings of its own time.
+    pub fn is_frame(&self) -> bool {
+        matches!(
+            self,
+            Observation::Scan(_) | Observation::Rgbd(_) | Observation::Stereo(_)
+        )
+    }
 }
 
 /// `observations` (each source's already in time order, concatenated in any order) sorted by
@@ -63,16 +74,10 @@ impl Observation {
 /// uses the one stamped with the scan's time, as it would have had the sensors been sampled
 /// together; otherwise the given order is kept.
 pub fn time_ordered(mut observations: Vec<Observation>) -> Vec<Observation> {
-    let is_frame = |o: &Observation| {
-        matches!(
-            o,
-            Observation::Scan(_) | Observation::Rgbd(_) | Observation::Stereo(_)
-        )
-    };
     observations.sort_by(|a, b| {
         a.timestamp()
             .total_cmp(&b.timestamp())
-            .then(is_frame(a).cmp(&is_frame(b)))
+            .then(a.is_frame().cmp(&b.is_frame()))
     });
     observations
 }

@@ -5,6 +5,9 @@
 //! them as they are.
 //!
 //! * [`lidar_node`]: `slamkit ros2 lidar` (2D lidar + wheel odometry).
+//! * [`drone_node`]: `slamkit ros2 drone` (2D lidar + up/down range finders + IMU: layered
+//!   SLAM), with [`drone_readings`]: the finders and the IMU as the session's readings.
+//! * [`scan_node`]: what the lidar and drone nodes share (readers, threads, publishing).
 //! * [`lidar_run`]: its settings and session from a request, its output files and report.
 //! * [`pairing`]: live scans tied to odometry by the rule of the bag reader, in publication
 //!   order.
@@ -15,7 +18,8 @@
 //! * [`nav_node`]: `slamkit ros2 nav` (a ground robot with an RGB-D camera, driven to a goal
 //!   on `/cmd_vel`).
 //! * [`sim_node`]: `slamkit sim --ros2` (the simulated robot of `slamkit nav`, its camera
-//!   published live, driven by `/cmd_vel`).
+//!   published live, driven by `/cmd_vel`), and [`drone_sim_node`]: the simulated drone's
+//!   flight, its lidar, range finders and IMU published live.
 //! * [`dds`]: what every node does with DDS (discovery, QoS, readers, the pose writers).
 //! * [`params`]: the ROS-style parameter file (`--params FILE.yaml`).
 //! * [`msgs`], [`grid_msg`]: the messages, and the occupancy grid as `nav_msgs/OccupancyGrid`.
@@ -26,6 +30,9 @@
 
 mod camera_input;
 pub mod dds;
+pub mod drone_node;
+pub mod drone_readings;
+pub mod drone_sim_node;
 pub mod grid_msg;
 pub mod lidar_node;
 pub mod lidar_run;
@@ -34,13 +41,17 @@ pub mod nav_node;
 pub mod pairing;
 pub mod params;
 pub mod rgbd_pairing;
+pub mod scan_node;
 pub mod sim_node;
 pub mod vo_node;
 pub mod vo_run;
 
+pub use drone_node::{run_drone_node, DroneNodeConfig, DroneNodeRun, DroneNodeSetup};
+pub use drone_sim_node::{run_drone_sim_node, DroneSimNodeConfig, DroneSimNodeStats};
 pub use lidar_node::{run_lidar_node, LidarNodeConfig, LidarNodeRun, NodeMode, NodeStats};
 pub use lidar_run::{LidarNodeRequest, LidarNodeSetup};
 pub use nav_node::{run_nav_node, NavNodeConfig, NavNodeRun, NavNodeStats};
+pub use scan_node::DroneTopics;
 pub use sim_node::{run_sim_node, SimNodeConfig, SimNodeStats};
 pub use vo_node::{run_vo_node, VoNodeConfig, VoNodeRun, VoNodeStats};
 pub use vo_run::{VoNodeRequest, VoNodeSetup};

@@ -29,6 +29,8 @@ pub struct LidarNodeRequest {
     pub config: Option<PathBuf>,
     /// Stop once no message came for this long after the first scan \[s\].
     pub idle_exit_s: Option<f64>,
+    /// Record what the node processed to this MCAP file.
+    pub record: Option<PathBuf>,
     /// DDS domain and discovery (the caller reads them from the environment,
     /// [`Discovery::from_env`]: a library does not read the process's environment).
     pub discovery: Discovery,
@@ -54,34 +56,16 @@ impl LidarNodeRequest {
     /// localisation without a map; [`Ros2Error::Slam`] for a profile, settings file or saved
     /// map that does not load.
     pub fn setup(&self) -> Result<LidarNodeSetup, Ros2Error> {
-        let mut node = LidarNodeConfig {
-            idle_exit_s: self.idle_exit_s,
-            discovery: self.discovery,
-            ..LidarNodeConfig::default()
-        };
-        let params = match &self.params {
-            Some(path) => RosParams::load(path, &node.node_name)?,
-            None => RosParams::default(),
-        };
-        let localize = self.localize.clone().or_else(|| {
-            (params.mode == Some(NodeMode::Localization))
-                .then(|| params.map_file())
-                .flatten()
-        });
+        let mut node = self.node_config(LidarNodeConfig::default());
+        let (params, localize) = self.params_and_map(&node.node_name)?;
         let mut config = LidarSlamConfig::from_files(
             LidarMethod::Icp,
             localize.is_some() || self.continue_map.is_some(),
             self.profile.as_deref(),
             self.config.as_deref(),
         )?;
-        params.apply(&mut node, &mut config)?;
-        if localize.is_some() {
-            node.mode = NodeMode::Localization;
-        } else if node.mode == NodeMode::Localization {
-            return Err(Ros2Error::Config(
-                "mode: localization needs a map: --localize MAP.skmap or map_file_name".into(),
-            ));
-        }
+        params.apply(&mut node, &mut config.icp.max_range_m)?;
+        set_mode(&mut node.mode, localize.is_some())?;
         let load = |path: &Path| LidarMap::load(path).map(|(map, _)| map);
         let session = match (&localize, &self.continue_map) {
             (Some(path), _) => LidarSlam::localise(config, load(path)?)?,
@@ -93,6 +77,49 @@ impl LidarNodeRequest {
             session,
             ignored_params: params.ignored().into_iter().map(String::from).collect(),
         })
+    }
+
+    /// `defaults` with the request's idle timeout, discovery and recording.
+    pub(crate) fn node_config(&self, defaults: LidarNodeConfig) -> LidarNodeConfig {
+        LidarNodeConfig {
+            idle_exit_s: self.idle_exit_s,
+            discovery: self.discovery,
+            record: self.record.clone(),
+            ..defaults
+        }
+    }
+
+    /// The parameter file's parameters (none without a file) and the saved map to localise
+    /// in: `localize`, else `map_file_name` with `mode: localization`.
+    pub(crate) fn params_and_map(
+        &self,
+        node_name: &str,
+    ) -> Result<(RosParams, Option<PathBuf>), Ros2Error> {
+        let params = match &self.params {
+            Some(path) => RosParams::load(path, node_name)?,
+            None => RosParams::default(),
+        };
+        let localize = self.localize.clone().or_else(|| {
+            (params.mode == Some(NodeMode::Localization))
+                .then(|| params.map_file())
+                .flatten()
+        });
+        Ok((params, localize))
+    }
+}
+
+/// Localisation when there is a map to localise in; `mode: localization` without one is an
+/// error.
+pub(crate) fn set_mode(mode: &mut NodeMode, have_map: bool) -> Result<(), Ros2Error> {
+    if have_map {
+        *mode = NodeMode::Localization;
+        Ok(())
+    } else if *mode == NodeMode::Localization {
+        Err(Ros2Error::Config(
+            "mode: localization needs a map: --localize MAP.skmap or map_file_name".into(),
+        ))
+    } else {
+        Ok(())
     }
 }
 
@@ -174,6 +201,10 @@ impl LidarNodeRun {
             "wall_seconds": wall_seconds,
             "timings_ms": self.session.timings().summary(),
             "node_latency_ms": self.stats.latency.summary(),
+            "recording": self.recorded.as_ref().map(|(file, messages)| json!({
+                "file": file,
+                "messages": messages,
+            })),
         })
     }
 

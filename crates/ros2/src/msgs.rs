@@ -345,6 +345,109 @@ impl TfMessage {
     }
 }
 
+/// `sensor_msgs/Range` (Jazzy's layout: no `variance`, which later distributions append).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Range {
+    /// Time of the reading, and the sensor's frame.
+    pub header: Header,
+    /// 0 ultrasound, 1 infrared.
+    pub radiation_type: u8,
+    /// Width of the beam \[rad\].
+    pub field_of_view: f32,
+    /// Shortest range the sensor reports \[m\].
+    pub min_range: f32,
+    /// Longest range the sensor reports \[m\].
+    pub max_range: f32,
+    /// The range \[m\] (+inf: nothing within `max_range`, -inf: nearer than `min_range`,
+    /// REP 117).
+    pub range: f32,
+}
+
+impl Range {
+    /// As the bag reader's message.
+    ///
+    /// # Errors
+    /// A stamp before 1970.
+    pub fn to_bag(&self) -> Result<bag::RangeMsg, String> {
+        Ok(bag::RangeMsg {
+            header: self.header.to_bag()?,
+            radiation_type: self.radiation_type,
+            field_of_view: self.field_of_view,
+            min_range: self.min_range,
+            max_range: self.max_range,
+            range: self.range,
+        })
+    }
+}
+
+/// `sensor_msgs/Imu`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Imu {
+    /// Time of the reading, and the IMU's frame.
+    pub header: Header,
+    /// Orientation of the IMU in a level frame.
+    pub orientation: Quaternion,
+    /// Its covariance (row-major 3×3; element 0 = -1: no orientation).
+    pub orientation_covariance: [f64; 9],
+    /// Angular velocity in the IMU's frame \[rad/s\].
+    pub angular_velocity: Vector3,
+    /// Its covariance.
+    pub angular_velocity_covariance: [f64; 9],
+    /// Linear acceleration \[m/s²\].
+    pub linear_acceleration: Vector3,
+    /// Its covariance.
+    pub linear_acceleration_covariance: [f64; 9],
+}
+
+impl Imu {
+    /// As the bag reader's message.
+    ///
+    /// # Errors
+    /// A stamp before 1970.
+    pub fn to_bag(&self) -> Result<bag::ImuMsg, String> {
+        let (q, w, a) = (
+            self.orientation,
+            self.angular_velocity,
+            self.linear_acceleration,
+        );
+        Ok(bag::ImuMsg {
+            header: self.header.to_bag()?,
+            orientation: [q.x, q.y, q.z, q.w],
+            orientation_covariance: self.orientation_covariance,
+            angular_velocity: [w.x, w.y, w.z],
+            angular_velocity_covariance: self.angular_velocity_covariance,
+            linear_acceleration: [a.x, a.y, a.z],
+            linear_acceleration_covariance: self.linear_acceleration_covariance,
+        })
+    }
+}
+
+impl LaserScan {
+    /// A slamkit scan as a ROS scan in `header`'s frame: ranges as they are (NaN and readings
+    /// below `range_min_m` are beams without a return, as ROS defines them), `range_max` the
+    /// scan's maximum range, `scan_time_s` the time between scans.
+    pub fn from_scan(
+        header: Header,
+        scan: &slamkit_core::LaserScan,
+        range_min_m: f64,
+        scan_time_s: f64,
+    ) -> Self {
+        let beams = scan.ranges_m.len().max(1) - 1;
+        Self {
+            header,
+            angle_min: scan.angle_min_rad as f32,
+            angle_max: (scan.angle_min_rad + beams as f64 * scan.angle_increment_rad) as f32,
+            angle_increment: scan.angle_increment_rad as f32,
+            time_increment: 0.0,
+            scan_time: scan_time_s as f32,
+            range_min: range_min_m as f32,
+            range_max: scan.max_range_m as f32,
+            ranges: scan.ranges_m.iter().map(|&r| r as f32).collect(),
+            intensities: Vec::new(),
+        }
+    }
+}
+
 /// `geometry_msgs/PoseWithCovarianceStamped`.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct PoseWithCovarianceStamped {
@@ -684,6 +787,25 @@ mod tests {
         };
         let decoded = bag::TfMessageMsg::decode_cdr(&cdr(&tf)).unwrap();
         assert_eq!(decoded, tf.to_bag().unwrap());
+        let range = Range {
+            header: Header::default(),
+            radiation_type: 1,
+            field_of_view: 0.05,
+            min_range: 0.02,
+            max_range: 4.0,
+            range: f32::INFINITY,
+        };
+        let decoded = bag::RangeMsg::decode_cdr(&cdr(&range)).unwrap();
+        assert_eq!(decoded, range.to_bag().unwrap());
+        let mut imu = Imu::default();
+        imu.orientation.z = 0.6;
+        imu.orientation.w = 0.8;
+        imu.orientation_covariance[0] = 0.01;
+        imu.angular_velocity.z = -0.3;
+        imu.linear_acceleration.z = 9.81;
+        imu.linear_acceleration_covariance[8] = 0.2;
+        let decoded = bag::ImuMsg::decode_cdr(&cdr(&imu)).unwrap();
+        assert_eq!(decoded, imu.to_bag().unwrap());
     }
 
     /// The camera messages likewise (and `CompressedImage`).

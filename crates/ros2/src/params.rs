@@ -1,7 +1,10 @@
 //! The node's parameter file, in ROS 2's YAML form (`node_name: ros__parameters: {...}`, or
 //! `/**:` for any node), with `slam_toolbox`'s names where the meaning is the same, so a robot's
-//! existing file mostly works as it is. Parameters slamkit has no use for are listed back to
-//! the caller (to warn), not refused: a `slam_toolbox` file holds dozens.
+//! existing file mostly works as it is. For the lidar and drone nodes, parameters slamkit has
+//! no use for are listed back to the caller (to warn), not refused: a `slam_toolbox` file
+//! holds dozens. The camera nodes (`vo`, `nav`) take no `slam_toolbox` file, so there a
+//! parameter they do not use is an error ([`RosParams::only`]): a misspelt topic would
+//! otherwise be silently left at its default.
 //!
 //! ```yaml
 //! slamkit:
@@ -16,12 +19,20 @@
 //!     resolution: 0.05           # of the published map [m]
 //!     max_laser_range: 20.0      # [m]
 //!     map_update_interval: 5.0   # [s]
+//!     # slamkit ros2 drone only:
+//!     range_up_topic: /range_up
+//!     range_down_topic: /range_down
+//!     imu_topic: /imu            # "" for a drone without one
+//!     # slamkit ros2 vo and nav (with map_frame, base_frame; vo also mode, map_file_name):
+//!     rgb_topic: /camera/camera/color/image_raw
+//!     depth_topic: /camera/camera/aligned_depth_to_color/image_raw
+//!     camera_info_topic: /camera/camera/color/camera_info
 //! ```
 
 use crate::lidar_node::{LidarNodeConfig, NodeMode};
+use crate::scan_node::DroneTopics;
 use crate::Ros2Error;
 use serde::de::DeserializeOwned;
-use slamkit_slam::LidarSlamConfig;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
@@ -48,6 +59,20 @@ pub struct RosParams {
     pub max_laser_range: Option<f64>,
     /// Seconds between map redraws.
     pub map_update_interval: Option<f64>,
+    /// A drone's up-looking range finder topic.
+    pub range_up_topic: Option<String>,
+    /// A drone's down-looking range finder topic.
+    pub range_down_topic: Option<String>,
+    /// A drone's IMU topic ("" for none).
+    pub imu_topic: Option<String>,
+    /// A camera's colour topic.
+    pub rgb_topic: Option<String>,
+    /// A camera's depth topic (registered to colour).
+    pub depth_topic: Option<String>,
+    /// A camera's calibration topic.
+    pub camera_info_topic: Option<String>,
+    /// The names of the parameters above that the file gives, sorted.
+    pub given: Vec<String>,
     /// Everything else in the file.
     pub other: BTreeMap<String, serde_yaml::Value>,
 }
@@ -114,8 +139,9 @@ impl RosParams {
         .ok_or_else(|| {
             Ros2Error::Config(format!("parameter file, block {key}: no ros__parameters"))
         })?;
+        let names: Vec<String> = block.keys().cloned().collect();
         let b = &mut block;
-        Ok(Self {
+        let mut params = Self {
             map_frame: take(b, "map_frame")?,
             odom_frame: take(b, "odom_frame")?,
             base_frame: take(b, "base_frame")?,
@@ -126,8 +152,51 @@ impl RosParams {
             resolution: take(b, "resolution")?,
             max_laser_range: take(b, "max_laser_range")?,
             map_update_interval: take(b, "map_update_interval")?,
-            other: block,
-        })
+            range_up_topic: take(b, "range_up_topic")?,
+            range_down_topic: take(b, "range_down_topic")?,
+            imu_topic: take(b, "imu_topic")?,
+            rgb_topic: take(b, "rgb_topic")?,
+            depth_topic: take(b, "depth_topic")?,
+            camera_info_topic: take(b, "camera_info_topic")?,
+            given: Vec::new(),
+            other: BTreeMap::new(),
+        };
+        params.given = names
+            .into_iter()
+            .filter(|n| !block.contains_key(n))
+            .collect();
+        params.other = block;
+        Ok(params)
+    }
+
+    /// Refuses a file with parameters other than `allowed` (for a node that reads no
+    /// `slam_toolbox` file, `node` naming it in the error).
+    ///
+    /// ```
+    /// use slamkit_ros2::params::RosParams;
+    /// let p = RosParams::parse("/**:\n  ros__parameters:\n    rgb_topc: /c\n", "slamkit").unwrap();
+    /// let e = p.only("vo", &["rgb_topic"]).unwrap_err().to_string();
+    /// assert!(e.contains("rgb_topc"), "{e}");
+    /// ```
+    ///
+    /// # Errors
+    /// [`Ros2Error::Config`] naming the parameters refused and those taken.
+    pub fn only(&self, node: &str, allowed: &[&str]) -> Result<(), Ros2Error> {
+        let refused: Vec<&str> = self
+            .given
+            .iter()
+            .chain(self.other.keys())
+            .map(String::as_str)
+            .filter(|name| !allowed.contains(name))
+            .collect();
+        if refused.is_empty() {
+            return Ok(());
+        }
+        Err(Ros2Error::Config(format!(
+            "parameter file: {} not used by slamkit ros2 {node} (it takes {})",
+            refused.join(", "),
+            allowed.join(", ")
+        )))
     }
 
     /// Reads and parses the parameter file at `path` ([`RosParams::parse`]).
@@ -158,14 +227,15 @@ impl RosParams {
         })
     }
 
-    /// Lays the parameters over the node's and the session's settings.
+    /// Lays the parameters over the node's settings and the session's longest range
+    /// (`max_range_m`, the lidar's usable range in the session's settings).
     ///
     /// # Errors
     /// [`Ros2Error::Config`] for a resolution, range or interval that is not positive.
     pub fn apply(
         &self,
         node: &mut LidarNodeConfig,
-        session: &mut LidarSlamConfig,
+        max_range_m: &mut f64,
     ) -> Result<(), Ros2Error> {
         let positive = |name: &str, v: Option<f64>| match v {
             Some(x) if !(x.is_finite() && x > 0.0) => Err(Ros2Error::Config(format!(
@@ -196,15 +266,29 @@ impl RosParams {
             node.map_update_interval_s = s;
         }
         if let Some(r) = positive("max_laser_range", self.max_laser_range)? {
-            session.icp.max_range_m = r;
+            *max_range_m = r;
         }
         Ok(())
+    }
+
+    /// Lays a drone's topic parameters over `topics`.
+    pub fn apply_drone(&self, topics: &mut DroneTopics) {
+        if let Some(t) = &self.range_up_topic {
+            topics.range_up_topic.clone_from(t);
+        }
+        if let Some(t) = &self.range_down_topic {
+            topics.range_down_topic.clone_from(t);
+        }
+        if let Some(t) = &self.imu_topic {
+            topics.imu_topic = (!t.is_empty()).then(|| t.clone());
+        }
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use slamkit_slam::LidarSlamConfig;
 
     #[test]
     fn a_slam_toolbox_style_file_applies() {
@@ -213,7 +297,7 @@ mod tests {
                     solver_plugin: solver_plugins::CeresSolver\n";
         let p = RosParams::parse(text, "slamkit").unwrap();
         let (mut node, mut session) = (LidarNodeConfig::default(), LidarSlamConfig::default());
-        p.apply(&mut node, &mut session).unwrap();
+        p.apply(&mut node, &mut session.icp.max_range_m).unwrap();
         assert_eq!(node.odom_topic, None);
         assert_eq!(node.mode, NodeMode::Localization);
         assert_eq!(node.resolution_m, 0.1);
@@ -235,12 +319,27 @@ mod tests {
         let negative = "slamkit:\n  ros__parameters:\n    resolution: -1.0\n";
         let p = RosParams::parse(negative, "slamkit").unwrap();
         let e = p
-            .apply(
-                &mut LidarNodeConfig::default(),
-                &mut LidarSlamConfig::default(),
-            )
+            .apply(&mut LidarNodeConfig::default(), &mut 20.0)
             .unwrap_err();
         assert!(e.to_string().contains("positive"), "{e}");
         assert!(RosParams::parse("[1, 2]", "slamkit").is_err());
+    }
+
+    #[test]
+    fn a_drones_topics_apply() {
+        let text = "slamkit:\n  ros__parameters:\n    range_up_topic: /tof/up\n    \
+                    range_down_topic: /tof/down\n    imu_topic: \"\"\n";
+        let p = RosParams::parse(text, "slamkit").unwrap();
+        let mut topics = DroneTopics::default();
+        p.apply_drone(&mut topics);
+        assert_eq!(
+            (
+                topics.range_up_topic.as_str(),
+                topics.range_down_topic.as_str()
+            ),
+            ("/tof/up", "/tof/down")
+        );
+        assert_eq!(topics.imu_topic, None);
+        assert!(p.ignored().is_empty());
     }
 }

@@ -173,7 +173,7 @@ pub fn run_sim_node(
 }
 
 /// The wall clock as a ROS time.
-fn now() -> Time {
+pub(crate) fn now() -> Time {
     let since = SystemTime::now()
         .duration_since(SystemTime::UNIX_EPOCH)
         .unwrap_or_default();

@@ -28,9 +28,11 @@ use crate::Ros2Error;
 use crossbeam_channel::{unbounded, Receiver};
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion};
 use slamkit_core::camera::PinholeCamera;
-use slamkit_core::{Pose3, StageTimings};
+use slamkit_core::{Observation, Pose3, StageTimings};
+use slamkit_slam::record::VisualRecording;
 use slamkit_slam::visual::{self, RunOptions, VisualRun, VisualUpdate};
 use slamkit_slam::{SlamError, VisualSlam};
+use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
@@ -67,6 +69,10 @@ pub struct VoNodeConfig {
     pub frame_queue: usize,
     /// Stop once no message came for this long after the first image \[s\].
     pub idle_exit_s: Option<f64>,
+    /// Record what the camera node processed to this MCAP file ([`VisualRecording`]: each
+    /// frame's image and pose, the path now and then, the final path and point map), as
+    /// `slamkit vo --record` records a dataset; the ground robot node does not record.
+    pub record: Option<PathBuf>,
 }
 
 impl Default for VoNodeConfig {
@@ -85,6 +91,7 @@ impl Default for VoNodeConfig {
             base_frame: "camera_link".into(),
             frame_queue: visual::pipeline::REALTIME_QUEUE,
             idle_exit_s: None,
+            record: None,
         }
     }
 }
@@ -127,6 +134,9 @@ pub struct VoNodeRun {
     pub camera: PinholeCamera,
     /// Counters.
     pub stats: VoNodeStats,
+    /// The recording, to be finished with the final path and map ([`VoNodeRun::finish`](
+    /// crate::vo_run)).
+    pub recording: Option<VisualRecording>,
 }
 
 /// Whether `topic` is an `image_transport` compressed one (`.../compressed`,
@@ -160,35 +170,58 @@ pub fn run_vo_node(
         path: Some(&config.path_topic),
     };
     let mut writers = PoseWriters::open(&mut node, &topics)?;
-    let ((session, run, camera), stats) =
+    let recording = config
+        .record
+        .as_deref()
+        .map(VisualRecording::live)
+        .transpose()?;
+    let ((session, run, camera, recording), stats) =
         run_camera_input(&mut node, config, stop, |camera, frames, shared| {
             let session = make_session(&camera)?;
             let mut publisher = PosePublisher::new(config, shared, &mut writers);
-            track(session, frames, &mut publisher).map(|(session, run)| (session, run, camera))
+            let (session, run, recording) = track(session, frames, &mut publisher, recording)?;
+            Ok((session, run, camera, recording))
         })?;
     Ok(VoNodeRun {
         session,
         run,
         camera,
         stats,
+        recording,
     })
 }
 
-/// Runs the visual pipeline on the queued pairs, decoding them on its read thread.
+/// The decoded frames the pipeline reads.
+type Frames<'a> = Box<dyn Iterator<Item = Result<Observation, String>> + Send + 'a>;
+
+/// Runs the visual pipeline on the queued pairs, decoding them on its read thread (and
+/// encoding their images there for the recording).
 fn track(
     mut session: VisualSlam,
     frames: &Receiver<Pair>,
     publisher: &mut PosePublisher,
-) -> Result<(VisualSlam, VisualRun), Ros2Error> {
+    mut recording: Option<VisualRecording>,
+) -> Result<(VisualSlam, VisualRun, Option<VisualRecording>), Ros2Error> {
     let (meta_tx, meta_rx) = unbounded();
     let source = frames.iter().enumerate().map(move |(index, pair)| {
         let _ = meta_tx.send((index, pair.stamp, pair.received));
         pair.frame()
     });
+    let source: Frames = match &recording {
+        Some(r) => Box::new(r.tap(source)),
+        None => Box::new(source),
+    };
+    let mut recording_error = None;
     let run = visual::run(&mut session, source, RunOptions::default(), |u| {
         publisher.publish(u, &meta_rx);
+        if let Some(Err(e)) = recording.as_mut().map(|r| r.push(u)) {
+            recording_error.get_or_insert(e);
+        }
     })?;
-    Ok((session, run))
+    if let Some(e) = recording_error {
+        return Err(e.into());
+    }
+    Ok((session, run, recording))
 }
 
 /// Publishes each tracked frame's pose at its colour image's stamp.

@@ -6,6 +6,8 @@
 //! `report.json` ([`VoNodeRun::finish`]).
 
 use crate::dds::Discovery;
+use crate::lidar_node::NodeMode;
+use crate::params::RosParams;
 use crate::vo_node::{VoNodeConfig, VoNodeRun};
 use crate::Ros2Error;
 use serde_json::{json, Value};
@@ -29,6 +31,11 @@ pub struct VoNodeRequest {
     pub camera_info_topic: Option<String>,
     /// The robot's frame, the child of `map` on `/tf` (default `camera_link`).
     pub base_frame: Option<String>,
+    /// The map frame (default `map`).
+    pub map_frame: Option<String>,
+    /// ROS 2 parameter file ([`RosParams`]: [`VO_PARAMS`], [`NAV_PARAMS`]); what the request
+    /// names itself wins over it.
+    pub params: Option<PathBuf>,
     /// Feature front end.
     pub frontend: FrontendKind,
     /// Named profile of the camera (or a `.toml` profile file).
@@ -41,6 +48,8 @@ pub struct VoNodeRequest {
     pub localize: Option<PathBuf>,
     /// Save the session's map here when the node stops.
     pub save_map: Option<PathBuf>,
+    /// Record what the node processed to this MCAP file.
+    pub record: Option<PathBuf>,
     /// Paired frames waiting for the session at most (default: a driver's ring of buffers).
     pub frame_queue: Option<usize>,
     /// Stop once no image came for this long \[s\].
@@ -56,12 +65,15 @@ impl Default for VoNodeRequest {
             depth_topic: None,
             camera_info_topic: None,
             base_frame: None,
+            map_frame: None,
+            params: None,
             frontend: FrontendKind::Klt,
             profile: None,
             config: None,
             slam: false,
             localize: None,
             save_map: None,
+            record: None,
             frame_queue: None,
             idle_exit_s: None,
             discovery: Discovery::default(),
@@ -82,8 +94,62 @@ pub struct VoNodeSetup {
     pub save_map: Option<PathBuf>,
 }
 
+/// The parameters `slamkit ros2 vo` takes from its parameter file.
+pub const VO_PARAMS: &[&str] = &[
+    "map_frame",
+    "base_frame",
+    "mode",
+    "map_file_name",
+    "rgb_topic",
+    "depth_topic",
+    "camera_info_topic",
+];
+
+/// The parameters `slamkit ros2 nav` takes from its parameter file.
+pub const NAV_PARAMS: &[&str] = &[
+    "map_frame",
+    "base_frame",
+    "rgb_topic",
+    "depth_topic",
+    "camera_info_topic",
+];
+
 impl VoNodeRequest {
-    /// `defaults` with what was asked laid over it: topics, base frame, frame queue, idle
+    /// This request with the parameter file's values (of `allowed`, for node `node`) where
+    /// the request names none: `mode: localization` localises in `map_file_name`.
+    ///
+    /// # Errors
+    /// [`Ros2Error::Config`] for a file that does not read, a parameter not in `allowed`, or
+    /// `mode: localization` without a map.
+    pub fn with_params(&self, node: &str, allowed: &[&str]) -> Result<Self, Ros2Error> {
+        let Some(path) = &self.params else {
+            return Ok(self.clone());
+        };
+        let params = RosParams::load(path, &VoNodeConfig::default().node_name)?;
+        if let Err(Ros2Error::Config(why)) = params.only(node, allowed) {
+            return Err(Ros2Error::Config(format!("{}: {why}", path.display())));
+        }
+        let mut request = self.clone();
+        for (slot, given) in [
+            (&mut request.rgb_topic, &params.rgb_topic),
+            (&mut request.depth_topic, &params.depth_topic),
+            (&mut request.camera_info_topic, &params.camera_info_topic),
+            (&mut request.base_frame, &params.base_frame),
+            (&mut request.map_frame, &params.map_frame),
+        ] {
+            if slot.is_none() {
+                slot.clone_from(given);
+            }
+        }
+        if params.mode == Some(NodeMode::Localization) && request.localize.is_none() {
+            request.localize = Some(params.map_file().ok_or_else(|| {
+                Ros2Error::Config("mode: localization needs map_file_name".into())
+            })?);
+        }
+        Ok(request)
+    }
+
+    /// `defaults` with what was asked laid over it: topics, frames, frame queue, idle
     /// timeout, discovery.
     pub fn node_config(&self, defaults: VoNodeConfig) -> VoNodeConfig {
         let mut node = VoNodeConfig {
@@ -96,6 +162,7 @@ impl VoNodeRequest {
             (&mut node.depth_topic, &self.depth_topic),
             (&mut node.camera_info_topic, &self.camera_info_topic),
             (&mut node.base_frame, &self.base_frame),
+            (&mut node.map_frame, &self.map_frame),
         ] {
             if let Some(v) = asked {
                 slot.clone_from(v);
@@ -104,6 +171,7 @@ impl VoNodeRequest {
         if let Some(q) = self.frame_queue {
             node.frame_queue = q;
         }
+        node.record.clone_from(&self.record);
         node
     }
 
@@ -115,6 +183,12 @@ impl VoNodeRequest {
     /// [`Ros2Error::Config`] for `slam` or `save_map` with `localize`, or a zero frame queue;
     /// [`Ros2Error::Slam`] for a profile or settings file that does not load.
     pub fn setup(&self) -> Result<VoNodeSetup, Ros2Error> {
+        let request = self.with_params("vo", VO_PARAMS)?;
+        request.setup_checked()
+    }
+
+    /// [`Self::setup`] once the parameter file is laid over the request.
+    fn setup_checked(&self) -> Result<VoNodeSetup, Ros2Error> {
         if self.localize.is_some() && (self.slam || self.save_map.is_some()) {
             return Err(Ros2Error::Config(
                 "localising in a saved map leaves it unchanged: no --slam or --save-map".into(),
@@ -204,6 +278,13 @@ impl VoNodeRun {
             Session::save(&self.session, path)?;
         }
         let finished = DatasetRun::finish(self.session, self.run)?;
+        let recorded = match self.recording {
+            Some(r) => {
+                let cloud = finished.output.point_map.as_ref().map(|m| m.to_cloud());
+                Some(r.finish(&finished.run.trajectory, cloud.as_ref())?)
+            }
+            None => None,
+        };
         let (mut report, _) = finished.write_files(dir, None)?;
         let c = self.camera.intrinsics;
         merge_json(
@@ -216,6 +297,10 @@ impl VoNodeRun {
                 "node": self.stats,
                 "node_latency_ms": self.stats.latency.summary(),
                 "map": { "saved_to": setup.save_map, "localised_in": setup.localize },
+                "recording": recorded.map(|messages| json!({
+                    "file": setup.node.record,
+                    "messages": messages,
+                })),
             }),
         );
         Ok(report)
@@ -252,5 +337,48 @@ mod tests {
             ..VoNodeRequest::default()
         };
         assert!(zero.setup().is_err());
+    }
+
+    #[test]
+    fn a_parameter_file_fills_what_the_request_leaves() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("p.yaml");
+        std::fs::write(
+            &path,
+            "slamkit:\n  ros__parameters:\n    rgb_topic: /cam/rgb\n    base_frame: base_link\n    \
+             map_frame: world\n    mode: localization\n    map_file_name: maps/office\n",
+        )
+        .unwrap();
+        let request = VoNodeRequest {
+            params: Some(path.clone()),
+            base_frame: Some("camera_link".into()),
+            ..VoNodeRequest::default()
+        };
+        let r = request.with_params("vo", VO_PARAMS).unwrap();
+        assert_eq!(r.rgb_topic.as_deref(), Some("/cam/rgb"));
+        // the command line wins
+        assert_eq!(r.base_frame.as_deref(), Some("camera_link"));
+        assert_eq!(r.localize, Some(PathBuf::from("maps/office.skmap")));
+        let node = r.node_config(VoNodeConfig::default());
+        assert_eq!(
+            (node.map_frame.as_str(), node.rgb_topic.as_str()),
+            ("world", "/cam/rgb")
+        );
+        // nav takes no map to localise in
+        let e = request
+            .with_params("nav", NAV_PARAMS)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("map_file_name, mode not used by slamkit ros2 nav"),
+            "{e}"
+        );
+        std::fs::write(
+            &path,
+            "slamkit:\n  ros__parameters:\n    rgb_topc: /cam/rgb\n",
+        )
+        .unwrap();
+        let e = request.setup().unwrap_err().to_string();
+        assert!(e.contains("rgb_topc") && e.contains("p.yaml"), "{e}");
     }
 }

@@ -10,7 +10,9 @@
 //! The poses received on `/pose` must be the trajectory `slamkit vo BAG --profile kinect-v1`
 //! computes (the same session through the same pipeline, run here on the bag), moved into the
 //! map frame by the mounting: `map_from_base = B · world_from_camera · B⁻¹`. Images that DDS
-//! drops (best effort) are counted; the reference then runs on the frames that came.
+//! drops (best effort) are counted; the reference then runs on the frames that came. The node
+//! records what it processed (`--record`, issue 23): read back, the file holds every frame's
+//! image, every published pose and transform, and the final path.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use ros2_client::dds::rustdds::{DataWriterStatus, QosPolicies, StatusEvented};
@@ -165,6 +167,8 @@ fn the_camera_node_on_loopback_gives_the_bag_runs_trajectory() {
         return;
     };
     let started = Instant::now();
+    let out = tempfile::tempdir().unwrap();
+    let recording = out.path().join("node.mcap");
     let (images, info) = read_bag(&path);
     let optical = info.header.frame_id.clone();
     // a domain of this process's own (ports 7400 + 250·domain: domains up to 232)
@@ -180,6 +184,7 @@ fn the_camera_node_on_loopback_gives_the_bag_runs_trajectory() {
         // every frame waits for the session: the test checks the trajectory, not the pace
         frame_queue: Some(1000),
         idle_exit_s: Some(1.5),
+        record: Some(recording.clone()),
         discovery,
         ..VoNodeRequest::default()
     };
@@ -357,5 +362,22 @@ fn the_camera_node_on_loopback_gives_the_bag_runs_trajectory() {
         );
         assert!(worst.0 <= 1e-9, "{} m", worst.0);
         assert!(worst.1 <= 1e-6, "{} s", worst.1);
+        let (frames, published) = (stats.frames_queued as u64, poses.len() as u64);
+        let report = run.finish(&setup, out.path()).unwrap();
+        let bytes = std::fs::read(&recording).unwrap();
+        let mut read = std::collections::BTreeMap::<String, u64>::new();
+        for message in mcap::MessageStream::new(&bytes).unwrap() {
+            *read
+                .entry(message.unwrap().channel.topic.clone())
+                .or_default() += 1;
+        }
+        println!("recorded {read:?}");
+        assert_eq!(
+            serde_json::to_value(&read).unwrap(),
+            report["recording"]["messages"]
+        );
+        assert_eq!(read["/camera/image"], frames);
+        assert_eq!((read["/pose"], read["/tf"]), (published, published));
+        assert!(read["/path"] >= 1);
     });
 }

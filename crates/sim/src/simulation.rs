@@ -368,13 +368,20 @@ impl Simulation {
     /// The whole run's scans (with odometry), range readings, attitudes (at the scan times),
     /// optical flow and ground truth, each sensor at its own rate.
     pub fn lidar_run(&self) -> LidarRun {
-        let times = self.sample_times(self.config.lidar.rate_hz);
+        self.lidar_run_until(self.duration_s())
+    }
+
+    /// The first `duration_s` of [`Self::lidar_run`] (the same readings, computed for that
+    /// span only).
+    pub fn lidar_run_until(&self, duration_s: f64) -> LidarRun {
+        let times = |rate_hz| sample_times(duration_s.min(self.duration_s()), rate_hz);
+        let scan_times = times(self.config.lidar.rate_hz);
         LidarRun {
-            scans: self.lidar_scans(&times),
-            ranges: self.range_readings(&self.sample_times(self.config.range_finder.rate_hz)),
-            attitudes: self.attitude_readings(&times),
-            flows: self.flow_readings(&self.sample_times(self.config.flow.rate_hz)),
-            ground_truth: self.ground_truth(&times),
+            scans: self.lidar_scans(&scan_times),
+            ranges: self.range_readings(&times(self.config.range_finder.rate_hz)),
+            attitudes: self.attitude_readings(&scan_times),
+            flows: self.flow_readings(&times(self.config.flow.rate_hz)),
+            ground_truth: self.ground_truth(&scan_times),
         }
     }
 

@@ -3,7 +3,9 @@
 //! A robot's sensors arrive through different drivers, threads or bag connections, so a range
 //! reading stamped before a scan may arrive after it. The collator holds every observation for
 //! `window_s` of sensor time and releases them oldest first once a newer one proves the window
-//! has passed. An observation older than what was already released cannot be put in order; it
+//! has passed; at equal timestamps readings leave before frames (scans, images), as
+//! [`time_ordered`](slamkit_core::observation::time_ordered) orders a recording, then in
+//! arrival order. An observation older than what was already released cannot be put in order; it
 //! is dropped and counted, never passed on out of order.
 
 use slamkit_core::Observation;
@@ -73,6 +75,7 @@ impl Collator {
         self.arrivals += 1;
         self.pending.push(Pending {
             timestamp: t,
+            frame: observation.is_frame(),
             arrival: self.arrivals,
             observation,
         });
@@ -111,10 +114,12 @@ impl Collator {
     }
 }
 
-/// A held observation, ordered oldest (then first arrived) first in the max-heap.
+/// A held observation, ordered oldest (then readings before frames, then first arrived) first
+/// in the max-heap.
 #[derive(Debug)]
 struct Pending {
     timestamp: f64,
+    frame: bool,
     arrival: u64,
     observation: Observation,
 }
@@ -139,6 +144,7 @@ impl Ord for Pending {
         other
             .timestamp
             .total_cmp(&self.timestamp)
+            .then(other.frame.cmp(&self.frame))
             .then(other.arrival.cmp(&self.arrival))
     }
 }
@@ -211,5 +217,26 @@ mod tests {
             })
             .collect();
         assert_eq!(ups, [Some(1.0), Some(2.0)]);
+    }
+
+    /// A live range reading stamped with a scan's time but arriving after it still goes
+    /// first, as in a recording: the scan is matched with the reading of its own time.
+    #[test]
+    fn a_reading_of_a_frames_time_goes_before_it_whatever_the_arrival() {
+        let scan = Observation::Scan(slamkit_core::LaserScan {
+            timestamp: 1.0,
+            angle_min_rad: 0.0,
+            angle_increment_rad: 0.1,
+            ranges_m: vec![1.0; 3],
+            max_range_m: 10.0,
+            odometry: None,
+            base_from_laser: slamkit_core::Pose2::identity(),
+        });
+        let mut c = Collator::new(0.5);
+        let mut out = c.push(scan);
+        out.extend(c.push(range(1.0)));
+        out.extend(c.finish());
+        let kinds: Vec<&str> = out.iter().map(Observation::kind).collect();
+        assert_eq!(kinds, ["range", "scan"]);
     }
 }

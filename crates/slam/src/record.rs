@@ -17,7 +17,7 @@ mod visual;
 pub use demo::record_demo;
 pub use nav::NavRecording;
 pub(crate) use visual::{encode_jpeg, EncodedImage};
-pub use visual::{VisualRecording, IMAGE_TOPIC};
+pub use visual::{VisualRecording, IMAGE_TOPIC, LIVE_PATH_FRAMES};
 
 use crate::SlamError;
 use mcap::records::MessageHeader;
@@ -383,6 +383,11 @@ impl Recorder {
 /// a few passes over the log whatever its length.
 pub const MAP_SNAPSHOTS: usize = 10;
 
+/// Scans between two map snapshots of a live run ([`LidarRecording::live`]), whose length is
+/// not known in advance: each snapshot redraws every scan so far on the session's thread, so
+/// they are spaced out (500 scans: under a minute of a 10 Hz lidar).
+pub const LIVE_SNAPSHOT_SCANS: usize = 500;
+
 /// A [`LidarSlam`](crate::LidarSlam) run being recorded: every scan with the pose it got (on
 /// `/scan`, `/pose` and `map → base_link` on `/tf`), and the map and the path so far on `/map`
 /// and `/path`, [`MAP_SNAPSHOTS`] times over the run and at its end.
@@ -401,6 +406,19 @@ impl LidarRecording {
         Ok(Self {
             recorder: Recorder::create(path)?,
             every: scans.div_ceil(MAP_SNAPSHOTS).max(1),
+            path: Vec::new(),
+        })
+    }
+
+    /// Starts recording a live run (a ROS 2 node's) to `path`: the map and the path every
+    /// [`LIVE_SNAPSHOT_SCANS`] scans and at the end.
+    ///
+    /// # Errors
+    /// [`SlamError::Recording`] when the file cannot be created.
+    pub fn live(path: &Path) -> Result<Self, SlamError> {
+        Ok(Self {
+            recorder: Recorder::create(path)?,
+            every: LIVE_SNAPSHOT_SCANS,
             path: Vec::new(),
         })
     }

@@ -1,4 +1,4 @@
-//! `slamkit ros2 lidar|vo|nav`: the ROS 2 nodes ([`slamkit_ros2`]) with their arguments; on stop
+//! `slamkit ros2 lidar|drone|vo|nav`: the ROS 2 nodes ([`slamkit_ros2`]) with their arguments; on stop
 //! (Ctrl-C, SIGTERM, or `--idle-exit`) the map, trajectory and report go to `--out`.
 
 use crate::commands::plan::parse_xy;
@@ -6,6 +6,7 @@ use crate::commands::vo::{CameraTopicArgs, Frontend};
 use crate::output::finish;
 use slamkit_io::output_folder::OutputFolder;
 use slamkit_ros2::dds::Discovery;
+use slamkit_ros2::{run_drone_node, DroneNodeRun};
 use slamkit_ros2::{run_lidar_node, run_vo_node, LidarNodeRequest, LidarNodeRun};
 use slamkit_ros2::{run_nav_node, NavNodeConfig, NavNodeRun, VoNodeRequest, VoNodeRun};
 use slamkit_slam::ground_robot::closed_loop::NavLoopConfig;
@@ -25,6 +26,11 @@ enum Ros2Node {
     /// 2D lidar SLAM (or localisation in a saved map) on /scan and /odom; publishes /map,
     /// map→odom on /tf and /pose.
     Lidar(LidarNodeArgs),
+    /// A drone's layered 2D lidar SLAM (or localisation in a saved map) on /scan, the up and
+    /// down range finders (/range_up, /range_down), /imu and, where present, /odom; publishes
+    /// the current height layer's map on /map, map→base_link (map→odom with odometry) on
+    /// /tf, /pose, /path and the layer on /slamkit/layer.
+    Drone(LidarNodeArgs),
     /// Visual odometry / SLAM (or localisation in a saved map) on an RGB-D camera's colour,
     /// aligned depth and camera_info (a RealSense driver's topics by default); publishes
     /// map→camera_link on /tf, /pose and /path.
@@ -45,10 +51,14 @@ struct NavNodeArgs {
     /// stands at the first frame); without it the robot waits for one on /goal_pose.
     #[arg(long, allow_hyphen_values = true)]
     goal: Option<String>,
+    /// ROS 2 parameter file: map_frame, base_frame, rgb_topic, depth_topic,
+    /// camera_info_topic; any other is an error. The options given here win.
+    #[arg(long)]
+    params: Option<PathBuf>,
     /// The robot's frame on the floor, the child of `map` on /tf (the camera's mounting from
-    /// it to the images' optical frame comes from /tf_static).
-    #[arg(long, default_value = "base_footprint")]
-    base_frame: String,
+    /// it to the images' optical frame comes from /tf_static) [default: base_footprint].
+    #[arg(long)]
+    base_frame: Option<String>,
     /// Named profile of the robot (or a profile file `X.toml`): its `[nav]` settings, as for
     /// `slamkit nav`.
     #[arg(long)]
@@ -76,10 +86,15 @@ struct VoNodeArgs {
     /// /camera/camera/color/camera_info).
     #[command(flatten)]
     topics: CameraTopicArgs,
+    /// ROS 2 parameter file: map_frame, base_frame, mode (mapping|localization),
+    /// map_file_name, rgb_topic, depth_topic, camera_info_topic; any other is an error. The
+    /// options given here win.
+    #[arg(long)]
+    params: Option<PathBuf>,
     /// The frame published as the child of `map` on /tf (the camera's mounting from it to
-    /// the images' optical frame comes from /tf_static).
-    #[arg(long, default_value = "camera_link")]
-    base_frame: String,
+    /// the images' optical frame comes from /tf_static) [default: camera_link].
+    #[arg(long)]
+    base_frame: Option<String>,
     /// Feature front end.
     #[arg(long, value_enum, default_value = "klt")]
     frontend: Frontend,
@@ -98,6 +113,10 @@ struct VoNodeArgs {
     /// Localise in this saved map (a `.skmap` of a `--slam` run) instead of building one.
     #[arg(long, conflicts_with_all = ["save_map", "slam"])]
     localize: Option<PathBuf>,
+    /// Record what the node processed to this MCAP file (as `slamkit vo --record`: each
+    /// frame's image and pose, the path every 100 frames, the final path and point map).
+    #[arg(long)]
+    record: Option<PathBuf>,
     /// Frames waiting for the session at most; newer ones are dropped and counted.
     #[arg(long)]
     frame_queue: Option<usize>,
@@ -109,12 +128,12 @@ struct VoNodeArgs {
     out: PathBuf,
 }
 
-/// Arguments of `slamkit ros2 lidar`.
+/// Arguments of `slamkit ros2 lidar` and `slamkit ros2 drone`.
 #[derive(Debug, clap::Args)]
 struct LidarNodeArgs {
     /// ROS 2 parameter file (`slam_toolbox` names: map_frame, odom_frame, base_frame,
     /// scan_topic, odom_topic, mode, map_file_name, resolution, max_laser_range,
-    /// map_update_interval).
+    /// map_update_interval; for the drone also range_up_topic, range_down_topic, imu_topic).
     #[arg(long)]
     params: Option<PathBuf>,
     /// Localise in this saved map (`.skmap`) instead of building one.
@@ -123,7 +142,8 @@ struct LidarNodeArgs {
     /// Continue this saved map (`.skmap`).
     #[arg(long = "continue")]
     continue_map: Option<PathBuf>,
-    /// Named profile of the robot (or a `.toml` profile file): its `[lidar]` settings.
+    /// Named profile of the robot (or a `.toml` profile file): its `[lidar]` settings (the
+    /// drone's: `[drone]`).
     #[arg(long)]
     profile: Option<String>,
     /// TOML file laid over the profile's settings (as for `slamkit lidar`).
@@ -132,15 +152,22 @@ struct LidarNodeArgs {
     /// Stop once no message came for this many seconds after the first scan.
     #[arg(long)]
     idle_exit: Option<f64>,
-    /// Where the map, trajectory and report go when the node stops.
-    #[arg(long, default_value = "out/ros2")]
-    out: PathBuf,
+    /// Record what the node processed to this MCAP file (as `slamkit lidar --record`: each
+    /// scan with its pose, the map and path every 500 scans and at the end; the lidar node
+    /// only).
+    #[arg(long)]
+    record: Option<PathBuf>,
+    /// Where the map, trajectory and report go when the node stops (default `out/ros2`, the
+    /// drone's `out/ros2-drone`).
+    #[arg(long)]
+    out: Option<PathBuf>,
 }
 
 /// Runs `slamkit ros2`.
 pub fn run(args: &Ros2Args) -> anyhow::Result<()> {
     match &args.node {
         Ros2Node::Lidar(a) => lidar(a),
+        Ros2Node::Drone(a) => drone(a),
         Ros2Node::Vo(a) => vo(a),
         Ros2Node::Nav(a) => nav(a),
     }
@@ -164,13 +191,16 @@ fn vo(args: &VoNodeArgs) -> anyhow::Result<()> {
         rgb_topic: t.rgb_topic.clone(),
         depth_topic: t.depth_topic.clone(),
         camera_info_topic: t.camera_info_topic.clone(),
-        base_frame: Some(args.base_frame.clone()),
+        base_frame: args.base_frame.clone(),
+        map_frame: None,
+        params: args.params.clone(),
         frontend: crate::commands::vo::frontend_kind(args.frontend),
         profile: args.profile.clone(),
         config: args.config.clone(),
         slam: args.slam,
         localize: args.localize.clone(),
         save_map: args.save_map.clone(),
+        record: args.record.clone(),
         frame_queue: args.frame_queue,
         idle_exit_s: args.idle_exit,
         discovery: discovery()?,
@@ -204,12 +234,14 @@ fn nav(args: &NavNodeArgs) -> anyhow::Result<()> {
         rgb_topic: t.rgb_topic.clone(),
         depth_topic: t.depth_topic.clone(),
         camera_info_topic: t.camera_info_topic.clone(),
-        base_frame: Some(args.base_frame.clone()),
+        base_frame: args.base_frame.clone(),
+        params: args.params.clone(),
         frame_queue: args.frame_queue,
         idle_exit_s: args.idle_exit,
         discovery: discovery()?,
         ..VoNodeRequest::default()
-    };
+    }
+    .with_params("nav", slamkit_ros2::vo_run::NAV_PARAMS)?;
     if args.frame_queue == Some(0) {
         anyhow::bail!("--frame-queue 0: the frame queue must hold a frame");
     }
@@ -260,28 +292,58 @@ fn nav(args: &NavNodeArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn lidar(args: &LidarNodeArgs) -> anyhow::Result<()> {
-    let started = Instant::now();
-    let request = LidarNodeRequest {
+/// What `slamkit ros2 lidar` and `slamkit ros2 drone` are asked for.
+fn lidar_request(args: &LidarNodeArgs) -> anyhow::Result<LidarNodeRequest> {
+    Ok(LidarNodeRequest {
         params: args.params.clone(),
         localize: args.localize.clone(),
         continue_map: args.continue_map.clone(),
         profile: args.profile.clone(),
         config: args.config.clone(),
         idle_exit_s: args.idle_exit,
+        record: args.record.clone(),
         discovery: discovery()?,
-    };
-    let setup = request.setup()?;
-    if !setup.ignored_params.is_empty() {
-        let ignored = setup.ignored_params.join(", ");
-        eprintln!("note: parameters not used by slamkit: {ignored}");
-    }
-    let folder = OutputFolder::create(&args.out, LidarNodeRun::OUTPUTS)?;
+    })
+}
+
+fn lidar(args: &LidarNodeArgs) -> anyhow::Result<()> {
+    let started = Instant::now();
+    let out_dir = args.out.clone().unwrap_or_else(|| "out/ros2".into());
+    let setup = lidar_request(args)?.setup()?;
+    note_ignored(&setup.ignored_params);
+    let folder = OutputFolder::create(&out_dir, LidarNodeRun::OUTPUTS)?;
     let stop = crate::output::stop_flag()?;
-    let out = args.out.display();
+    let out = out_dir.display();
     let what = setup.node.describe();
     println!("slamkit ros2 lidar: {what}; Ctrl-C stops and saves to {out}");
     let run = run_lidar_node(&setup.node, setup.session, &stop)?;
+    run.write_outputs(folder.path())?;
+    finish(folder, &run.report(started.elapsed().as_secs_f64()))?;
+    println!("{}; outputs in {out}", run.summary());
+    Ok(())
+}
+
+/// Says which parameters of the file slamkit does not use.
+fn note_ignored(ignored: &[String]) {
+    if !ignored.is_empty() {
+        eprintln!(
+            "note: parameters not used by slamkit: {}",
+            ignored.join(", ")
+        );
+    }
+}
+
+fn drone(args: &LidarNodeArgs) -> anyhow::Result<()> {
+    let started = Instant::now();
+    let out_dir = args.out.clone().unwrap_or_else(|| "out/ros2-drone".into());
+    let setup = lidar_request(args)?.drone_setup()?;
+    note_ignored(&setup.ignored_params);
+    let folder = OutputFolder::create(&out_dir, DroneNodeRun::OUTPUTS)?;
+    let stop = crate::output::stop_flag()?;
+    let out = out_dir.display();
+    let what = setup.node.describe();
+    println!("slamkit ros2 drone: {what}; Ctrl-C stops and saves to {out}");
+    let run = run_drone_node(&setup.node, setup.session, &stop)?;
     run.write_outputs(folder.path())?;
     finish(folder, &run.report(started.elapsed().as_secs_f64()))?;
     println!("{}; outputs in {out}", run.summary());

@@ -20,7 +20,7 @@ use anyhow::Context;
 use serde_json::json;
 use slamkit_core::StageTimings;
 use slamkit_io::output_folder::OutputFolder;
-use slamkit_ros2::{run_sim_node, SimNodeConfig};
+use slamkit_ros2::{run_drone_sim_node, run_sim_node, DroneSimNodeConfig, SimNodeConfig};
 use slamkit_sim::recording::{counts_by_sensor, write_recording, Sensor, KITTI_FOLDER, TUM_FOLDER};
 use slamkit_sim::{GroundRobot, RobotKind, RobotPath, SimConfig, Simulation, World};
 use slamkit_slam::ground_robot::closed_loop::NavLoopConfig;
@@ -60,9 +60,11 @@ pub struct SimArgs {
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// Publish live on ROS 2 instead of writing files: the ground robot of `slamkit nav`
-    /// (`--sensors rgbd`) publishes its camera at 10 Hz as a RealSense driver does and drives
-    /// by /cmd_vel, until Ctrl-C or `--duration`; `groundtruth.tum` and `report.json` go to
-    /// `--out`.
+    /// (`--robot diff-drive --sensors rgbd`) publishes its camera at 10 Hz as a RealSense
+    /// driver does and drives by /cmd_vel; the drone (`--robot drone --sensors
+    /// lidar2d,range,imu`) flies its flight path in real time publishing /scan, /range_up,
+    /// /range_down and /imu (for `slamkit ros2 drone`); until Ctrl-C or `--duration` (or the
+    /// flight's end); `groundtruth.tum` and `report.json` go to `--out`.
     #[arg(long)]
     pub ros2: bool,
     /// Output folder.
@@ -149,14 +151,21 @@ pub fn run(args: &SimArgs) -> anyhow::Result<()> {
 /// ([`slamkit_ros2::sim_node`]).
 fn live(args: &SimArgs) -> anyhow::Result<()> {
     let started = Instant::now();
-    if Sensor::parse_list(&args.sensors)? != [Sensor::Rgbd] || args.robot != Robot::DiffDrive {
-        anyhow::bail!(
-            "--ros2 publishes the ground robot's RGB-D camera: give --robot diff-drive \
-             --sensors rgbd"
-        );
-    }
     if let Some(d) = args.duration.filter(|d| !(d.is_finite() && *d > 0.0)) {
         anyhow::bail!("--duration {d}: must be a positive number of seconds");
+    }
+    let sensors = Sensor::parse_list(&args.sensors)?;
+    let drone = [Sensor::Lidar2d, Sensor::Range, Sensor::Imu];
+    let same = |a: &[Sensor], b: &[Sensor]| a.len() == b.len() && a.iter().all(|s| b.contains(s));
+    if args.robot == Robot::Drone && same(&sensors, &drone) {
+        return live_drone(args, started);
+    }
+    if sensors != [Sensor::Rgbd] || args.robot != Robot::DiffDrive {
+        anyhow::bail!(
+            "--ros2 publishes the ground robot's RGB-D camera (--robot diff-drive --sensors \
+             rgbd) or the drone's lidar, range finders and IMU (--robot drone --sensors \
+             lidar2d,range,imu)"
+        );
     }
     let world = World::by_name_or_file(&args.world)?;
     let sim = settings(
@@ -186,14 +195,16 @@ fn live(args: &SimArgs) -> anyhow::Result<()> {
         config.cmd_vel_topic
     );
     let stats = run_sim_node(&config, &mut robot, &stop)?;
-    slamkit_io::write_tum(&folder.path().join("groundtruth.tum"), &stats.truth)?;
-    let report = json!({
-        "input": { "world": args.world, "seed": args.seed, "robot": "DiffDrive", "ros2": true },
-        "config": sim,
-        "node": stats,
-        "wall_seconds": started.elapsed().as_secs_f64(),
-    });
-    finish(folder, &report)?;
+    let node = json!(stats);
+    finish_live(
+        args,
+        folder,
+        "DiffDrive",
+        json!(sim),
+        node,
+        &stats.truth,
+        started,
+    )?;
     println!(
         "{} frames published, {} commands, {} periods driven; outputs in {}",
         stats.frames_published,
@@ -202,4 +213,81 @@ fn live(args: &SimArgs) -> anyhow::Result<()> {
         args.out.display()
     );
     Ok(())
+}
+
+/// `slamkit sim --ros2 --robot drone`: the drone's flight live on ROS 2
+/// ([`slamkit_ros2::drone_sim_node`]).
+fn live_drone(args: &SimArgs, started: Instant) -> anyhow::Result<()> {
+    let world = World::by_name_or_file(&args.world)?;
+    let config = SimConfig {
+        robot: RobotKind::Drone,
+        ..settings(
+            SimConfig::default(),
+            "sim",
+            args.profile.as_deref(),
+            args.config.as_deref(),
+        )?
+    };
+    let path: RobotPath = args.path.parse()?;
+    let sim = Simulation::on_path(world, config.clone(), path, args.seed)?;
+    let node = DroneSimNodeConfig {
+        discovery: crate::commands::ros2::discovery()?,
+        duration_s: args.duration,
+        ..DroneSimNodeConfig::default()
+    };
+    let folder = OutputFolder::create(&args.out, OUTPUTS)?;
+    let stop = crate::output::stop_flag()?;
+    println!(
+        "slamkit sim --ros2: the drone of {} for {:.1} s on {}, {}, {}, {} ({} -> {}); Ctrl-C \
+         stops",
+        sim.world.name,
+        args.duration.unwrap_or(f64::INFINITY).min(sim.duration_s()),
+        node.scan_topic,
+        node.range_up_topic,
+        node.range_down_topic,
+        node.imu_topic,
+        node.base_frame,
+        node.laser_frame
+    );
+    let stats = run_drone_sim_node(&node, &sim, &stop)?;
+    let node = json!(stats);
+    finish_live(
+        args,
+        folder,
+        "Drone",
+        json!(config),
+        node,
+        &stats.truth,
+        started,
+    )?;
+    println!(
+        "{} scans, {} range and {} IMU messages published ({} late); outputs in {}",
+        stats.scans_published,
+        stats.ranges_published,
+        stats.imu_published,
+        stats.late,
+        args.out.display()
+    );
+    Ok(())
+}
+
+/// Writes a live run's `groundtruth.tum` and `report.json` (the simulated `robot`, its
+/// settings `config`, the node's counters `node`) and commits the folder.
+fn finish_live(
+    args: &SimArgs,
+    folder: OutputFolder,
+    robot: &str,
+    config: serde_json::Value,
+    node: serde_json::Value,
+    truth: &slamkit_core::Trajectory,
+    started: Instant,
+) -> anyhow::Result<()> {
+    slamkit_io::write_tum(&folder.path().join("groundtruth.tum"), truth)?;
+    let report = json!({
+        "input": { "world": args.world, "seed": args.seed, "robot": robot, "ros2": true },
+        "config": config,
+        "node": node,
+        "wall_seconds": started.elapsed().as_secs_f64(),
+    });
+    finish(folder, &report)
 }

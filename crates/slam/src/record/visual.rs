@@ -23,6 +23,10 @@ pub const IMAGE_TOPIC: &str = "/camera/image";
 /// below what a viewer shows.
 const JPEG_QUALITY: u8 = 85;
 
+/// Frames between two recordings of the path in a live run ([`VisualRecording::live`]): the
+/// whole path is written each time, so not at every frame (100 frames: 3 s of a 30 Hz camera).
+pub const LIVE_PATH_FRAMES: usize = 100;
+
 /// An encoded image and the time of its frame \[s\].
 pub(crate) type EncodedImage = (f64, Vec<u8>);
 
@@ -45,13 +49,26 @@ impl VisualRecording {
     /// # Errors
     /// [`SlamError::Recording`] when the file cannot be created.
     pub fn create(path: &Path, frames: usize) -> Result<Self, SlamError> {
+        Self::recording_path_every(path, frames.div_ceil(MAP_SNAPSHOTS).max(1))
+    }
+
+    /// Starts recording a live run (a ROS 2 node's), whose length is not known: the path
+    /// every [`LIVE_PATH_FRAMES`] frames and at the end.
+    ///
+    /// # Errors
+    /// [`SlamError::Recording`] when the file cannot be created.
+    pub fn live(path: &Path) -> Result<Self, SlamError> {
+        Self::recording_path_every(path, LIVE_PATH_FRAMES)
+    }
+
+    fn recording_path_every(path: &Path, every: usize) -> Result<Self, SlamError> {
         let (sender, images) = unbounded();
         Ok(Self {
             recorder: Recorder::create(path)?,
             sender,
             images,
             pending: VecDeque::new(),
-            every: frames.div_ceil(MAP_SNAPSHOTS).max(1),
+            every,
             updates: 0,
             path: Vec::new(),
             last_t: 0.0,
