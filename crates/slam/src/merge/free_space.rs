@@ -110,7 +110,8 @@ enum Cell {
     Known,
 }
 
-/// One map's free space, as a dense array of [`Cell`] over the grid's known area.
+/// One map's free space: each cell of the grid's known area unknown, known free, or known
+/// otherwise (an obstacle, near one, or seen too little).
 #[derive(Debug, Clone)]
 pub struct FreeSpaceMap {
     origin_m: Point2<f64>,
