@@ -13,13 +13,19 @@
 //!    the fix; it must fit as well and land on the same relative pose. A query that sees only
 //!    part of what the other map holds at that place (a corridor that fits a longer one) fails
 //!    here.
-//! 3. [`pcm`]: pairwise consistency maximisation (Mangelson et al., "Pairwise Consistent
+//! 3. [`free_space`]: how much of one map's obstacles the closure's alignment puts in the
+//!    other's known free space (each map's scans ray-traced into a grid). A corridor seen
+//!    driving the other way fits its walls turned by 180° but puts the rooms and corridor ends
+//!    seen beyond them in the other map's free space. Measured on every closure; rejecting on
+//!    it is off by default (`max_conflict = 1`): on ACES true closures reach 0.036 and the
+//!    reversed corridor's 0.043–0.082 (docs/experiments/map-merge.md).
+//! 4. [`pcm`]: pairwise consistency maximisation (Mangelson et al., "Pairwise Consistent
 //!    Measurement Set Maximization for Robust Multi-robot Map Merging", ICRA 2018): for each pair
 //!    of maps, two closures are consistent when they put one map in the other's frame at the same
 //!    place, within a tolerance that grows with the distance between them; the largest set of
 //!    mutually consistent closures (a maximum clique) is kept, and only when it holds at least
 //!    `min_consistent` closures: one match, however good, never merges two maps.
-//! 4. [`joint`]: the maps' frames chained along the accepted pairs, then one pose graph of every
+//! 5. [`joint`]: the maps' frames chained along the accepted pairs, then one pose graph of every
 //!    keyframe (each map's own edges, the accepted closures with a Cauchy kernel) optimised by
 //!    the lidar crate's solver ([`slamkit_lidar::pose_graph`]). The maps joined to the largest
 //!    group form the merged map, in the frame of the first of them; the rest are reported as
@@ -27,6 +33,7 @@
 //!
 //! Nothing here reads ground truth; the tests score the merge against it.
 
+pub mod free_space;
 pub mod joint;
 pub mod output;
 pub mod pcm;
@@ -55,6 +62,8 @@ pub struct MergeConfig {
     pub places: places::PlacesConfig,
     /// Geometric verification of each fix.
     pub verify: verify::VerifyConfig,
+    /// Free-space consistency of each verified closure.
+    pub free_space: free_space::FreeSpaceConfig,
     /// Pairwise consistency among the closures between two maps.
     pub pcm: pcm::PcmConfig,
     /// The joint pose graph.
@@ -68,6 +77,7 @@ impl MergeConfig {
         self.global_search.validate()?;
         self.places.validate()?;
         self.verify.validate()?;
+        self.free_space.validate()?;
         self.pcm.validate()?;
         self.joint.validate()
     }
@@ -81,6 +91,8 @@ pub enum ClosureStatus {
     Accepted,
     /// The reverse alignment did not fit, or landed elsewhere.
     FailedVerification,
+    /// Verified, but it puts one map's obstacles in the other's known free space.
+    FreeSpaceConflict,
     /// Verified, but not in the largest consistent set of its pair of maps.
     Inconsistent,
     /// In the largest consistent set, but that set was too small to join the two maps.
@@ -107,6 +119,9 @@ pub struct InterClosure {
     pub goodness: f64,
     /// ICP goodness of the reverse alignment (`None`: it failed to run).
     pub reverse_goodness: Option<f64>,
+    /// Fraction of the two maps' points near the closure, moved by it into the other map's
+    /// known cells, that land in its known free space (`None`: not checked).
+    pub free_space_conflict: Option<f64>,
     /// What became of it.
     pub status: ClosureStatus,
 }
@@ -206,6 +221,9 @@ pub fn merge_maps(maps: &[LidarMap], config: &MergeConfig) -> Result<MergeOutcom
     let start = Instant::now();
     verify::verify_all(&keyframes, &mut closures, &config.verify);
     timings.record_since("verify", start);
+    let start = Instant::now();
+    free_space::check_all(maps, &keyframes, &mut closures, &config.free_space)?;
+    timings.record_since("free_space", start);
     let start = Instant::now();
     let pairs = pcm::select(&keyframes, &mut closures, &config.pcm);
     timings.record_since("pcm", start);

@@ -13,14 +13,15 @@
 //! closures are found to join every part; at 0.6 ACES joined one pair rightly and another by
 //! four mutually consistent closures of a corridor seen the other way round (BENCHMARKS.md).
 //! Their tests hold what stands: no wrong closure accepted, and the parts that merge are placed
-//! right at their cuts.
+//! right at their cuts. Every verified closure is printed with its free-space conflict and its
+//! error against the uninterrupted run (docs/experiments/map-merge.md).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers fail loudly
 
 use slamkit_core::pose::pose3_to_pose2;
 use slamkit_core::{LaserScan, Pose2, Trajectory};
 use slamkit_eval::relations::GroundTruthRelation;
 use slamkit_slam::lidar::LidarMap;
-use slamkit_slam::merge::{merge_maps, ClosureStatus, MergeConfig, MergeOutcome};
+use slamkit_slam::merge::{merge_maps, ClosureStatus, InterClosure, MergeConfig, MergeOutcome};
 use slamkit_slam::{LidarSlam, LidarSlamConfig, Session};
 use std::path::Path;
 use std::time::Instant;
@@ -166,17 +167,43 @@ fn check_merge(
     }
 }
 
-/// Accepted closures the uninterrupted run disagrees with by more than 0.3 m or 5°.
+/// How far the uninterrupted run's relative pose between a closure's keyframes is from the
+/// closure's \[m, °\].
+fn truth_error(c: &InterClosure, maps: &[LidarMap], full: &Trajectory) -> (f64, f64) {
+    let t_from = maps[c.from_map].keyframes[c.from_keyframe].scan.timestamp;
+    let t_to = maps[c.to_map].keyframes[c.to_keyframe].scan.timestamp;
+    let truth = pose_at(full, t_from).inverse() * pose_at(full, t_to);
+    differ(&truth, &c.from_from_to)
+}
+
+/// Accepted closures the uninterrupted run disagrees with by more than 0.3 m or 5°; prints
+/// every verified closure with its free-space conflict and its error.
 fn wrong_closures(outcome: &MergeOutcome, maps: &[LidarMap], full: &Trajectory) -> usize {
+    for c in outcome
+        .closures
+        .iter()
+        .filter(|c| c.status != ClosureStatus::FailedVerification)
+    {
+        let (m, deg) = truth_error(c, maps, full);
+        eprintln!(
+            "  closure {}:{} -> {}:{} goodness {:.2}/{:.2} free-space conflict {:.3} \
+             {:?}: off by {m:.2} m, {deg:.1}°",
+            c.from_map,
+            c.from_keyframe,
+            c.to_map,
+            c.to_keyframe,
+            c.goodness,
+            c.reverse_goodness.unwrap_or(0.0),
+            c.free_space_conflict.unwrap_or(f64::NAN),
+            c.status,
+        );
+    }
     outcome
         .closures
         .iter()
         .filter(|c| c.status == ClosureStatus::Accepted)
         .filter(|c| {
-            let t_from = maps[c.from_map].keyframes[c.from_keyframe].scan.timestamp;
-            let t_to = maps[c.to_map].keyframes[c.to_keyframe].scan.timestamp;
-            let truth = pose_at(full, t_from).inverse() * pose_at(full, t_to);
-            let (m, deg) = differ(&truth, &c.from_from_to);
+            let (m, deg) = truth_error(c, maps, full);
             m > 0.3 || deg > 5.0
         })
         .count()

@@ -90,7 +90,7 @@ pub struct PairLink {
 }
 
 /// Runs the consistency check on every pair of maps (`keyframes[m]`: map `m`'s keyframes):
-/// sets the status of each verified closure (accepted, too few consistent, inconsistent) and
+/// sets the status of each verified closure that passed the free-space check (accepted, too few consistent, inconsistent) and
 /// returns the pairs joined.
 pub fn select(
     keyframes: &[Vec<Keyframe>],
@@ -99,7 +99,11 @@ pub fn select(
 ) -> Vec<PairLink> {
     let mut by_pair: BTreeMap<(usize, usize), Vec<usize>> = BTreeMap::new();
     for (i, c) in closures.iter().enumerate() {
-        if c.status != ClosureStatus::FailedVerification {
+        let checked = !matches!(
+            c.status,
+            ClosureStatus::FailedVerification | ClosureStatus::FreeSpaceConflict
+        );
+        if checked {
             by_pair.entry((c.from_map, c.to_map)).or_default().push(i);
         }
     }

@@ -127,6 +127,7 @@ pub fn find_candidates(
                     from_from_to: world_from_from.inverse() * fix.world_from_base,
                     goodness: fix.goodness,
                     reverse_goodness: None,
+                    free_space_conflict: None,
                     status: ClosureStatus::Inconsistent,
                 });
             }

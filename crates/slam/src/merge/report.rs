@@ -53,6 +53,7 @@ impl MergeOutcome {
                     "from_from_to": pose_json(&c.from_from_to),
                     "goodness": c.goodness,
                     "reverse_goodness": c.reverse_goodness,
+                    "free_space_conflict": c.free_space_conflict,
                     "status": c.status,
                 })
             })

@@ -177,6 +177,7 @@ fn pcm_rejects_a_planted_wrong_closure_and_joins_only_on_enough_agreement() {
             from_from_to: a_poses[from].inverse() * a_from_b * b_poses[to] * noise * wrong,
             goodness: 0.9,
             reverse_goodness: Some(0.9),
+            free_space_conflict: None,
             status: ClosureStatus::Inconsistent,
         }
     };
@@ -302,4 +303,63 @@ fn submap_points_are_in_the_centre_keyframes_frame() {
     assert!((points[0] - Point2::new(0.0, 0.0)).norm() < 1e-12);
     assert!((points[1] - Point2::new(1.0, 0.0)).norm() < 1e-12);
     assert!(submap_points(&kfs, 7, 1).is_empty());
+}
+
+#[test]
+fn a_corridor_seen_the_other_way_round_conflicts_with_free_space_and_the_true_story_does_not() {
+    use super::free_space::{conflict, FreeSpaceConfig, FreeSpaceMap};
+    // a corridor 14 m long, closed at x = 0, opening into a room at x = 14; its walls fit
+    // themselves turned half a turn about the corridor's middle, the two ends do not
+    let world = SegmentWorld::polygon(&[
+        (0.0, 0.0),
+        (14.0, 0.0),
+        (14.0, -3.0),
+        (20.0, -3.0),
+        (20.0, 4.5),
+        (14.0, 4.5),
+        (14.0, 1.5),
+        (0.0, 1.5),
+    ]);
+    // A drives in from the room and back, B out of the closed end and back (the scans see
+    // 270°, so each end is seen on the way towards it); each map in its start frame
+    let pi = std::f64::consts::PI;
+    let mut path_a = line((17.0, 0.7), (1.0, 0.8), 30, pi);
+    path_a.extend(line((1.5, 0.8), (17.0, 0.7), 30, 0.0));
+    let mut path_b = line((1.0, 0.75), (17.0, 0.75), 30, 0.0);
+    path_b.extend(line((16.5, 0.7), (1.0, 0.7), 30, pi));
+    let (a, b) = (
+        map_along(&world, &path_a, 0.0),
+        map_along(&world, &path_b, 100.0),
+    );
+    let config = FreeSpaceConfig {
+        max_conflict: 0.05,
+        ..FreeSpaceConfig::default()
+    };
+    let icp = MergeConfig::default().icp;
+    let b_keyframes = b.matcher_keyframes(&icp);
+    let a_grid = FreeSpaceMap::new(&a, &config).unwrap();
+    let a_from_b_true = path_a[0].inverse() * path_b[0];
+    // the reversed story: B's corridor turned half a turn about its middle (7, 0.75)
+    let middle = Pose2::new(Vector2::new(7.0, 0.75), 0.0);
+    let turn = middle * Pose2::new(Vector2::zeros(), std::f64::consts::PI) * middle.inverse();
+    let a_from_b_reversed = path_a[0].inverse() * turn * path_b[0];
+    // B's keyframe 12 is in the corridor, about x = 7.6
+    let right = conflict(&b_keyframes, 12, &a_from_b_true, &a_grid, config.radius_m);
+    let wrong = conflict(
+        &b_keyframes,
+        12,
+        &a_from_b_reversed,
+        &a_grid,
+        config.radius_m,
+    );
+    assert!(right.known >= config.min_points, "{right:?}");
+    assert_eq!(right.free, 0, "{right:?}");
+    // only the two end walls tell (a few per cent of the points here; real corridors have
+    // doors, rooms and clutter that tell more: BENCHMARKS.md)
+    assert!(wrong.known >= config.min_points, "{wrong:?}");
+    assert!(wrong.fraction() > 0.01, "{wrong:?}");
+    // a map far away in a frame of its own lands nowhere known: nothing to judge
+    let away = Pose2::new(Vector2::new(500.0, 0.0), 0.0);
+    let nowhere = conflict(&b_keyframes, 12, &away, &a_grid, config.radius_m);
+    assert_eq!(nowhere.known, 0);
 }
