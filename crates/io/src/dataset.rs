@@ -129,9 +129,19 @@ impl RgbdSequence {
     /// Decodes a frame's colour and depth images, depth converted to metres.
     pub fn load(&self, frame: &RgbdFrame) -> Result<RgbdImages, IoError> {
         let color = load_rgb(&frame.color)?;
-        let raw = load_depth(&frame.depth)?;
-        let depth_m = depth_to_metres(&raw, self.depth_units_per_metre, &self.invalid_depth);
+        let depth_m = self.load_depth(frame)?;
         Ok(RgbdImages { color, depth_m })
+    }
+
+    /// Decodes a frame's depth image alone, in metres (0.0 where the sensor gave none): what
+    /// a map built after the run from keyframes needs, without decoding colour again.
+    pub fn load_depth(&self, frame: &RgbdFrame) -> Result<Image<f32>, IoError> {
+        let raw = load_depth(&frame.depth)?;
+        Ok(depth_to_metres(
+            &raw,
+            self.depth_units_per_metre,
+            &self.invalid_depth,
+        ))
     }
 }
 

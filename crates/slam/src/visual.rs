@@ -40,6 +40,7 @@ pub mod keyframes;
 mod loop_closing;
 mod loop_thread;
 pub mod pipeline;
+pub mod planning_map;
 pub mod point_map;
 mod prepare;
 pub mod run_files;
@@ -544,6 +545,11 @@ impl VisualSlam {
             Some(loops) => loops.state().visual_map(&self.tracked_from_camera),
             None => self.map.clone(),
         }
+    }
+
+    /// The camera rig the session was made for.
+    pub fn rig(&self) -> &Rig {
+        &self.rig
     }
 
     /// Frame counters so far.

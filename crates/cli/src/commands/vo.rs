@@ -1,7 +1,8 @@
 //! `slamkit vo`: visual odometry on an RGB-D or stereo dataset folder, through the
 //! [`VisualSlam`] session (started at the identity), with the trajectory, ground truth, point
-//! cloud and report written to the output folder, and with `--save-map` the keyframes as a
-//! `.skmap` file.
+//! cloud and report written to the output folder, the maps to plan in built from the keyframes
+//! (`octree.bt` and the floor grid `map.pgm/.yaml/.png` for RGB-D), and
+//! with `--save-map` the keyframes as a `.skmap` file.
 
 use crate::output::{finish_with_page, merge_json, progress_bar};
 use anyhow::Context;
@@ -13,6 +14,7 @@ use slamkit_io::IoError;
 use slamkit_io::{Dataset, DatasetFormat as IoFormat};
 use slamkit_slam::profile::layout_profile;
 use slamkit_slam::record::VisualRecording;
+use slamkit_slam::visual::planning_map::PlanningMapConfig;
 use slamkit_slam::visual::run_files::{self, DatasetRun};
 use slamkit_slam::visual::{self, PointMapping, RunOptions, VisualSlam};
 use slamkit_slam::Session;
@@ -26,6 +28,10 @@ const OUTPUTS: &[&str] = &[
     "trajectory.kitti",
     "groundtruth.tum",
     "cloud.ply",
+    "octree.bt",
+    "map.pgm",
+    "map.yaml",
+    "map.png",
     "report.json",
     "report.html",
 ];
@@ -213,7 +219,7 @@ pub fn run(args: &VoArgs) -> anyhow::Result<()> {
         }
         None => None,
     };
-    let (mut report, metrics) = run.write(out, &dataset, format)?;
+    let (mut report, metrics) = run.write(out, &dataset, format, &PlanningMapConfig::default())?;
     merge_json(
         &mut report,
         json!({

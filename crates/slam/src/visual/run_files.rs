@@ -3,14 +3,17 @@
 //! the report's fields about frames, map, timings, accuracy and loop closures, scored against
 //! the dataset's ground truth when it has one (the session itself never reads it).
 
+use super::planning_map::{self, PlanningMapConfig};
 use super::{check_closures, LoopClosure, LoopStats, VisualOutput, VisualRun, VisualSlam};
 use crate::report::merge_json;
 use crate::SlamError;
 use serde_json::{json, Value};
-use slamkit_core::Trajectory;
+use slamkit_core::{Pose3, Trajectory};
 use slamkit_io::{Dataset, DatasetFormat};
+use slamkit_vo::frame::Rig;
 use slamkit_vo::{evaluate, VoMetrics};
 use std::path::Path;
+use std::time::Instant;
 
 /// A finished run over a dataset, as `slamkit vo` writes it.
 pub struct DatasetRun {
@@ -22,31 +25,47 @@ pub struct DatasetRun {
     pub loops: Option<(LoopStats, Vec<LoopClosure>)>,
     /// Keyframes in the session's map at the end.
     pub keyframes: usize,
+    /// Each keyframe's timestamp and final `world_from_camera` (with loop closure on, where
+    /// the last correction left it): what the planning maps are built from.
+    pub keyframe_poses: Vec<(f64, Pose3)>,
+    /// The rig, for the planning maps.
+    pub rig: Rig,
 }
 
 impl DatasetRun {
     /// Ends `session` after [`super::run`] gave `run`.
     pub fn finish(session: VisualSlam, run: VisualRun) -> Result<Self, SlamError> {
-        let keyframes = session.map().keyframes.len();
+        let map = session.map();
+        let keyframe_poses = map
+            .keyframes
+            .iter()
+            .map(|k| (k.timestamp, k.pose))
+            .collect();
         let loops = session.loop_closures();
+        let rig = session.rig().clone();
         let output = session.finish()?;
         Ok(Self {
             run,
             output,
             loops,
-            keyframes,
+            keyframes: map.keyframes.len(),
+            keyframe_poses,
+            rig,
         })
     }
 
     /// Writes `trajectory.tum` (and `trajectory.kitti` for a KITTI dataset), `groundtruth.tum`
-    /// when `dataset` has ground truth, and `cloud.ply` (the point map) into `out`; returns the
-    /// report's `frames`, `map`, `timings_ms`, `metrics`, `loop_closure` and `frame_status`
-    /// fields, and the accuracy against the ground truth.
+    /// when `dataset` has ground truth, `cloud.ply` (the point map) and the maps to plan in
+    /// built from the keyframes ([`planning_map::write_planning_maps`] with `planning`:
+    /// `octree.bt` and `map.pgm/.yaml/.png` for RGB-D) into `out`;
+    /// returns the report's `frames`, `map`, `planning_map`, `timings_ms`, `metrics`,
+    /// `loop_closure` and `frame_status` fields, and the accuracy against the ground truth.
     pub fn write(
         &self,
         out: &Path,
         dataset: &Dataset,
         format: DatasetFormat,
+        planning: &PlanningMapConfig,
     ) -> Result<(Value, Option<VoMetrics>), SlamError> {
         if format == DatasetFormat::Kitti {
             let trajectory = &self.run.trajectory;
@@ -55,7 +74,19 @@ impl DatasetRun {
         if dataset.ground_truth().is_some() {
             dataset.write_ground_truth_tum(&out.join("groundtruth.tum"))?;
         }
-        self.write_files(out, dataset.ground_truth())
+        let started = Instant::now();
+        let planning_map = planning_map::write_planning_maps(
+            dataset,
+            &self.keyframe_poses,
+            &self.rig,
+            planning,
+            out,
+        )?;
+        let planning_ms = started.elapsed().as_secs_f64() * 1e3;
+        let (mut report, metrics) = self.write_files(out, dataset.ground_truth())?;
+        report["planning_map"] = planning_map;
+        report["planning_map"]["build_ms"] = json!(planning_ms);
+        Ok((report, metrics))
     }
 
     /// Writes `trajectory.tum` and `cloud.ply` into `out` (a run of any source: a dataset, a
