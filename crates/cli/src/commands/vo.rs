@@ -1,7 +1,7 @@
 //! `slamkit vo`: visual odometry on an RGB-D or stereo dataset folder, through the
 //! [`VisualSlam`] session (started at the identity), with the trajectory, ground truth, point
 //! cloud and report written to the output folder, the maps to plan in built from the keyframes
-//! (`octree.bt` and the floor grid `map.pgm/.yaml/.png` for RGB-D), and
+//! (`octree.bt` and the floor grid `floor.pgm/.yaml/.png` for RGB-D), and
 //! with `--save-map` the keyframes as a `.skmap` file.
 
 use crate::output::{finish_with_page, merge_json, progress_bar};
@@ -29,9 +29,9 @@ const OUTPUTS: &[&str] = &[
     "groundtruth.tum",
     "cloud.ply",
     "octree.bt",
-    "map.pgm",
-    "map.yaml",
-    "map.png",
+    "floor.pgm",
+    "floor.yaml",
+    "floor.png",
     "report.json",
     "report.html",
 ];

@@ -8,7 +8,8 @@
 //! * a 2D floor grid ([`FloorGrid`], [`FloorGridMethod::PointCount`]: points 0.1–1.0 m above
 //!   the floor counted per cell, a cell with `min_points` of them an obstacle, cells crossed by a
 //!   Bresenham ray from the camera to a point at most 1 m high free; written as
-//!   `map.pgm/.yaml/.png`).
+//!   `floor.pgm/.yaml/.png`: not `map.*`, which a run's page draws the trajectories on, and
+//!   this grid is in the floor-aligned frame, not the trajectory's).
 //!
 //! Both live in a floor-aligned frame found on the data, not from a known camera mount: planes
 //! are taken out of the keyframes' points one after the other by RANSAC
@@ -363,7 +364,7 @@ fn pose_array(pose: &Pose3) -> [f64; 7] {
     [t.x, t.y, t.z, q.x, q.y, q.z, q.w]
 }
 
-/// Writes `octree.bt` and, when a floor was found, `map.pgm/.yaml/.png` into `dir`.
+/// Writes `octree.bt` and, when a floor was found, `floor.pgm/.yaml/.png` into `dir`.
 ///
 /// # Errors
 /// The writers' errors.
@@ -372,9 +373,9 @@ pub fn write_rgbd_maps(maps: &RgbdMaps, dir: &Path) -> Result<Vec<&'static str>,
     let mut files = vec!["octree.bt"];
     if let Some(grid) = &maps.grid {
         let image = tri_grid_image(grid);
-        save_image_yaml(&image, grid.resolution_m(), &dir.join("map.yaml"))?;
-        save_image_png(image, &dir.join("map.png"))?;
-        files.extend(["map.pgm", "map.yaml", "map.png"]);
+        save_image_yaml(&image, grid.resolution_m(), &dir.join("floor.yaml"))?;
+        save_image_png(image, &dir.join("floor.png"))?;
+        files.extend(["floor.pgm", "floor.yaml", "floor.png"]);
     }
     Ok(files)
 }

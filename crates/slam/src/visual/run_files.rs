@@ -57,7 +57,7 @@ impl DatasetRun {
     /// Writes `trajectory.tum` (and `trajectory.kitti` for a KITTI dataset), `groundtruth.tum`
     /// when `dataset` has ground truth, `cloud.ply` (the point map) and the maps to plan in
     /// built from the keyframes ([`planning_map::write_planning_maps`] with `planning`:
-    /// `octree.bt` and `map.pgm/.yaml/.png` for RGB-D) into `out`;
+    /// `octree.bt` and `floor.pgm/.yaml/.png` for RGB-D) into `out`;
     /// returns the report's `frames`, `map`, `planning_map`, `timings_ms`, `metrics`,
     /// `loop_closure` and `frame_status` fields, and the accuracy against the ground truth.
     pub fn write(
