@@ -60,3 +60,30 @@ pub enum GeometryError {
         reason: &'static str,
     },
 }
+
+/// `err` and its causes on one line, `outer: cause: root cause`, as the CLI prints errors; a
+/// cause an outer message already quotes is not repeated.
+///
+/// ```
+/// use slamkit_core::error::{error_chain, GeometryError};
+/// #[derive(Debug, thiserror::Error)]
+/// #[error("aligning the trajectories")]
+/// struct Outer(#[source] GeometryError);
+/// let err = Outer(GeometryError::Degenerate { set: "destination" });
+/// assert_eq!(
+///     error_chain(&err),
+///     "aligning the trajectories: destination points are degenerate (coincident or collinear)"
+/// );
+/// ```
+pub fn error_chain(err: &dyn std::error::Error) -> String {
+    let mut message = err.to_string();
+    let mut source = err.source();
+    while let Some(cause) = source {
+        let text = cause.to_string();
+        if !message.contains(&text) {
+            message = format!("{message}: {text}");
+        }
+        source = cause.source();
+    }
+    message
+}

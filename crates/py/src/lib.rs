@@ -35,17 +35,7 @@ pyo3::create_exception!(
 /// A [`SlamkitError`] carrying `err` and its causes on one line (`outer: cause: root`), as the
 /// CLI prints them.
 pub fn to_py_err(err: impl std::error::Error) -> PyErr {
-    let mut message = err.to_string();
-    let mut source = err.source();
-    while let Some(cause) = source {
-        let text = cause.to_string();
-        // Errors that already quote their cause are not repeated.
-        if !message.contains(&text) {
-            message = format!("{message}: {text}");
-        }
-        source = cause.source();
-    }
-    SlamkitError::new_err(message)
+    SlamkitError::new_err(slamkit_core::error::error_chain(&err))
 }
 
 /// The Python module.

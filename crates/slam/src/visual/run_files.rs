@@ -99,9 +99,13 @@ impl DatasetRun {
     ) -> Result<(Value, Option<VoMetrics>), SlamError> {
         let trajectory = &self.run.trajectory;
         slamkit_io::trajectory_file::write_tum(&out.join("trajectory.tum"), trajectory)?;
-        let metrics = match ground_truth {
-            Some(gt) => Some(evaluate(trajectory, gt)?),
-            None => None,
+        // A run that cannot be scored (a camera driven in a straight line leaves the SE(3)
+        // alignment undetermined, as evo's Umeyama refuses it too) keeps its outputs; the
+        // report says why there is no score.
+        let (metrics, metrics_error) = match ground_truth.map(|gt| evaluate(trajectory, gt)) {
+            Some(Ok(m)) => (Some(m), None),
+            Some(Err(e)) => (None, Some(slamkit_core::error::error_chain(&e))),
+            None => (None, None),
         };
         let loop_closure = self.loops.as_ref().map(|(stats, closures)| {
             let check = ground_truth.map(|gt| check_closures(closures, gt));
@@ -123,6 +127,7 @@ impl DatasetRun {
             },
             "timings_ms": timings.summary(),
             "metrics": metrics,
+            "metrics_error": metrics_error,
             "loop_closure": loop_closure,
             "frame_status": self.run.frames,
         });
@@ -130,8 +135,9 @@ impl DatasetRun {
     }
 }
 
-/// The lines a person reads at the end of a visual run, from its `report`: frame counts and,
-/// when timed, the per-frame time.
+/// The lines a person reads at the end of a visual run, from its `report`: frame counts, why
+/// the run was not scored when a ground truth could not score it, and, when timed, the
+/// per-frame time.
 ///
 /// ```
 /// let report = serde_json::json!({
@@ -143,6 +149,16 @@ impl DatasetRun {
 ///     "vo: 3 frames, 3 processed, 0 failed, 0 dropped, 0 skipped\n\
 ///      per-frame time: median 9.5 ms, p95 12.0 ms"
 /// );
+/// // a run the ground truth could not score says why
+/// let report = serde_json::json!({
+///     "frames": { "frames": 3, "processed": 3, "failed": 0, "dropped": 0, "skipped": 0 },
+///     "metrics_error": "aligning the estimate onto the reference: destination points are \
+///                       degenerate (coincident or collinear)",
+///     "timings_ms": {},
+/// });
+/// assert!(slamkit_slam::visual::run_files::summary(&report)
+///     .ends_with("not scored against the ground truth: aligning the estimate onto the \
+///                 reference: destination points are degenerate (coincident or collinear)"));
 /// ```
 pub fn summary(report: &Value) -> String {
     let f = &report["frames"];
@@ -150,6 +166,9 @@ pub fn summary(report: &Value) -> String {
         "vo: {} frames, {} processed, {} failed, {} dropped, {} skipped",
         f["frames"], f["processed"], f["failed"], f["dropped"], f["skipped"]
     );
+    if let Some(why) = report["metrics_error"].as_str() {
+        text += &format!("\nnot scored against the ground truth: {why}");
+    }
     if let Some(t) = report["timings_ms"].get("frame") {
         let ms = |key: &str| t[key].as_f64().unwrap_or(f64::NAN);
         text += &format!(
