@@ -8,7 +8,8 @@
 # original bags store them in. slamkit's `ros2_bags` tests (crates/cli/tests/ros2_bags.rs)
 # read them. Also the first 60 frames of 7-Scenes RedKitchen as RGB-D camera bags (MCAP and
 # .db3) with a reference folder, by scripts/rgbd_to_ros2_bags.py (rosbags, Pillow to decode
-# the images), for the `vo_bags` tests (crates/cli/tests/vo_bags.rs). Nothing here is committed.
+# the images), and a simulated camera's run (`slamkit sim`, built here) as an MCAP bag, for the
+# `vo_bags` tests (crates/cli/tests/vo_bags.rs). Nothing here is committed.
 #
 # Usage: scripts/make_ros2_bags.sh [OUT_DIR]      (default: target/ros2-bags)
 # Needs python3 with venv; installs rosbags into OUT_DIR/venv. Bags already converted are kept.
@@ -60,5 +61,18 @@ if [ ! -f "$out/redkitchen_db3/metadata.yaml" ]; then
     fi
     rm -rf "$out"/redkitchen_{ref,mcap,db3}
     "$venv/bin/python" scripts/rgbd_to_ros2_bags.py "$rgbd" "$out" 60
+fi
+# A simulated camera as a bag (vo_bags tests): `slamkit sim` drives the office's ground robot
+# 23 s (a straight, a quarter turn in place, a straight) with its RGB-D camera at 10 Hz; its
+# TUM folder is the reference for the MCAP bag written from it.
+sim="$out/sim_office"
+if [ ! -f "$sim/mcap/metadata.yaml" ]; then
+    rm -rf "$sim"
+    mkdir -p "$sim"
+    printf '[rgbd]\nrate_hz = 10.0\n' >"$sim/camera.toml"
+    cargo build --release --quiet -p slamkit
+    target/release/slamkit sim --world office --robot diff-drive --sensors rgbd --duration 23 \
+        --seed 1 --config "$sim/camera.toml" --out "$sim/folder" >/dev/null
+    "$venv/bin/python" scripts/rgbd_to_ros2_bags.py --sim "$sim/folder" "$sim/mcap"
 fi
 echo "make_ros2_bags: ROS 2 bags in $out (rosbags $ROSBAGS_VERSION)"

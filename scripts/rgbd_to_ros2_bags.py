@@ -16,7 +16,17 @@ OUT_DIR/<name>_db3/   SQLite: bgr8 colour, 32FC1 depth [m], NaN where there is n
                       openni driver's topics), a CameraInfo topic for each camera.
 Frame N is stamped N/30 s as the folder reader stamps it; depth 4 ms after its colour image,
 as two sensors' clocks are never equal (the reader pairs them by TUM's rule, within 0.02 s).
+
+Usage: rgbd_to_ros2_bags.py --sim SRC_SIM_DIR OUT_BAG
+
+A simulated camera (the output folder of `slamkit sim --sensors rgbd`: report.json and
+tum_rgbd_fr1/) as one MCAP bag, zstd chunks, of a RealSense driver's compressed topics: the
+colour images as `sensor_msgs/CompressedImage` (the folder's PNG files as they are), depth as
+32FC1 [m] (the folder's 16-bit units over report.json's units per metre, NaN where there is
+none), one CameraInfo topic from report.json's intrinsics; stamped with the folder's times.
+The folder itself is the reference: `slamkit vo` must give the same trajectory on both.
 """
+import json
 import sys
 from pathlib import Path
 
@@ -98,7 +108,50 @@ def openni(ts, t, rgb, depth_mm, k, size):
     ]
 
 
+def simulated(src, bag):
+    """Writes the simulated RGB-D folder `src` as the MCAP bag `bag` (see the module's help)."""
+    report = json.loads((src / 'report.json').read_text())
+    rgbd = report['config']['rgbd']
+    cam = rgbd['intrinsics']
+    k = (cam['fx'], cam['fy'], cam['cx'], cam['cy'])
+    size = (cam['width'], cam['height'])
+    units = float(rgbd['depth_units_per_metre'])
+    tum = src / 'tum_rgbd_fr1'
+    frame = 'camera_color_optical_frame'
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    writer = Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP)
+    writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
+    compressed = 'sensor_msgs/msg/CompressedImage'
+    with writer:
+        rgb_conn = writer.add_connection('/camera/color/image_raw/compressed', compressed,
+                                         typestore=ts)
+        depth_conn = writer.add_connection('/camera/aligned_depth_to_color/image_raw',
+                                           'sensor_msgs/msg/Image', typestore=ts)
+        info_conn = writer.add_connection('/camera/color/camera_info',
+                                          'sensor_msgs/msg/CameraInfo', typestore=ts)
+        for line in (tum / 'associations.txt').read_text().splitlines():
+            if not line.strip() or line.startswith('#'):
+                continue
+            t_rgb, rgb_file, t_depth, depth_file = line.split()[:4]
+            tc, td = round(float(t_rgb) * 1e9), round(float(t_depth) * 1e9)
+            png = np.frombuffer((tum / rgb_file).read_bytes(), dtype=np.uint8)
+            rgb = ts.types[compressed](header=header(ts, tc, frame), format='png', data=png)
+            raw = np.asarray(PilImage.open(tum / depth_file)).astype(np.float64)
+            metres = np.where(raw == 0, np.nan, raw / units).astype('<f4')
+            msgs = [
+                (rgb_conn, tc, rgb, compressed),
+                (info_conn, tc, camera_info(ts, tc, frame, k, size),
+                 'sensor_msgs/msg/CameraInfo'),
+                (depth_conn, td, image(ts, td, frame, metres, '32FC1'), 'sensor_msgs/msg/Image'),
+            ]
+            for conn, ns, msg, msgtype in sorted(msgs, key=lambda m: m[1]):
+                writer.write(conn, ns, ts.serialize_cdr(msg, msgtype))
+
+
 def main():
+    if sys.argv[1] == '--sim':
+        simulated(Path(sys.argv[2]), Path(sys.argv[3]))
+        return
     src, out = Path(sys.argv[1]), Path(sys.argv[2])
     count = int(sys.argv[3]) if len(sys.argv) > 3 else 60
     name = 'redkitchen'
