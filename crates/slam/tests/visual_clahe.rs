@@ -5,24 +5,14 @@
 //! (docs/experiments/clahe.md).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers fail loudly
 
-use std::path::PathBuf;
-
 use slamkit_core::image::{GrayImage, RgbImage};
 use slamkit_core::Observation;
 use slamkit_io::{Dataset, DatasetFormat};
 use slamkit_slam::profile::Profile;
 use slamkit_slam::visual::{self, RunOptions, VisualSlam};
+use slamkit_testdata::data;
 use slamkit_vo::frame::{Preprocessor, SensorImages};
 use slamkit_vo::{evaluate, AutoClaheConfig, FrameStatus, FrontendKind, VoConfig};
-
-fn data(test: &str, rel: &str) -> Option<PathBuf> {
-    let Some(root) = std::env::var_os("SLAMKIT_DATA") else {
-        eprintln!("{test}: SLAMKIT_DATA not set, skipped");
-        return None;
-    };
-    let dir = PathBuf::from(root).join(rel);
-    dir.exists().then_some(dir)
-}
 
 /// How a frame is lit: the light's gain at column `x` of `width` in frame `i` of `n`.
 /// First third as recorded; second third a shadow over the left 60 % of the image (×0.12);

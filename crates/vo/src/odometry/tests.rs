@@ -25,16 +25,21 @@ fn texture(seed: u64) -> RgbImage {
     Image::from_vec(W, H, data).unwrap()
 }
 
-/// A KLT frame of an RGB-D camera whose left third has no depth.
-fn klt_frame(config: &VoConfig) -> PreparedFrame {
-    let k = Intrinsics {
+/// The test images' camera.
+fn camera() -> Intrinsics {
+    Intrinsics {
         fx: 150.0,
         fy: 150.0,
         cx: 80.0,
         cy: 60.0,
         width: W,
         height: H,
-    };
+    }
+}
+
+/// A KLT frame of an RGB-D camera whose left third has no depth.
+fn klt_frame(config: &VoConfig) -> PreparedFrame {
+    let k = camera();
     let mut pre = Preprocessor::new(config, Rig::Rgbd { color: k, depth: k }).unwrap();
     let depth = (0..W * H)
         .map(|i| if i % W < W / 3 { 0.0 } else { 1.5 })
@@ -94,14 +99,7 @@ fn lazily_lifted_corners_are_those_lifted_up_front() {
 /// into.
 #[test]
 fn automatic_clahe_switches_on_a_shadow_and_back_with_hysteresis() {
-    let k = Intrinsics {
-        fx: 150.0,
-        fy: 150.0,
-        cx: 80.0,
-        cy: 60.0,
-        width: W,
-        height: H,
-    };
+    let k = camera();
     let rig = Rig::Rgbd { color: k, depth: k };
     let bright = texture(4);
     let mut shadow = bright.clone();
