@@ -133,7 +133,12 @@ fn kitti_06_clip_has_no_loop_to_close() {
 /// localised against the existing keyframes instead: the map (keyframes, bytes) stays within
 /// 10 % of pass 1's, no closure or localisation is wrong, the ATE does not grow
 /// (BENCHMARKS.md, "Visual SLAM").
+///
+/// 1800 frames, 215 s in release (2026-11-27): a measurement, not a CI test; the same rule is
+/// checked in CI by `three_laps_keep_the_keyframes_of_the_first` (the slam crate's unit
+/// tests, a synthetic 3-lap drive, under 1 s).
 #[test]
+#[ignore = "1800 frames of 7-Scenes, 215 s: docs/experiments/visual-slam.md"]
 fn seven_scenes_played_three_times_closes_loops_on_every_revisit() {
     let Some(dir) = data(
         "seven_scenes_played_three_times_closes_loops_on_every_revisit",

@@ -161,6 +161,13 @@ pub struct PreparedFrame {
     pub camera: Intrinsics,
     /// The KLT pyramid (KLT front end).
     pub pyramid: Option<KltPyramid>,
+    /// Whether the grey image (and so `pyramid` and the features) went through CLAHE.
+    pub clahe: bool,
+    /// The KLT pyramid of the other grey image (plain when `clahe`, CLAHE's otherwise) on a
+    /// frame where automatic CLAHE switched (`auto_clahe`): the reference, prepared before
+    /// the switch, is tracked into this one, whose grey levels match its own, and the next
+    /// frame is tracked from `pyramid`. `None` on every other frame.
+    pub bridge: Option<KltPyramid>,
     /// Detected features.
     pub features: Features,
     /// What the frame adds to the world map.
@@ -182,7 +189,19 @@ pub struct Preprocessor {
     orb: Option<Orb>,
     /// ORB for place recognition beside the KLT front end.
     place_orb: Option<Orb>,
+    /// Automatic CLAHE's state (`auto_clahe`).
+    auto: AutoState,
 }
+
+/// Whether automatic CLAHE is on, and the frames since the plain image was last detected on.
+#[derive(Debug, Default)]
+struct AutoState {
+    on: bool,
+    since_check: usize,
+}
+
+/// Pixels and (ORB) descriptors detected in one grey image.
+type Detected = (Vec<Point2<f64>>, Vec<Descriptor>);
 
 impl Preprocessor {
     /// Builds the kernels of `config` for `rig`.
@@ -191,8 +210,7 @@ impl Preprocessor {
     /// [`VoError`] for an invalid configuration.
     pub fn new(config: &VoConfig, rig: Rig) -> Result<Self, VoError> {
         config.validate()?;
-        let clahe = config
-            .use_clahe
+        let clahe = (config.use_clahe || config.auto_clahe.enabled())
             .then(|| Clahe::new(config.clahe.clone()))
             .transpose()?;
         let orb = (config.frontend == FrontendKind::Orb)
@@ -207,6 +225,7 @@ impl Preprocessor {
             clahe,
             orb,
             place_orb,
+            auto: AutoState::default(),
         })
     }
 
@@ -231,7 +250,7 @@ impl Preprocessor {
         images: SensorImages,
     ) -> Result<PreparedFrame, FailReason> {
         let camera = self.camera();
-        let (gray, depth, colors) = match images {
+        let (plain, depth, colors) = match images {
             SensorImages::Rgbd { color, depth_m } => {
                 if (color.width(), color.height()) != (depth_m.width(), depth_m.height()) {
                     return Err(FailReason::SizeMismatch);
@@ -242,31 +261,31 @@ impl Preprocessor {
                     }
                     _ => DepthImage::InColorCamera(Arc::new(depth_m)),
                 };
-                let gray = self.gray_of(&color);
-                (gray, DepthSource::Image(depth), Some(color))
+                (rgb_to_gray(&color), DepthSource::Image(depth), Some(color))
             }
             SensorImages::Stereo { left, right } => {
                 if (left.width(), left.height()) != (right.width(), right.height()) {
                     return Err(FailReason::SizeMismatch);
                 }
-                let left = match &mut self.clahe {
-                    Some(c) => c.apply_gray(&left),
-                    None => left,
-                };
+                // the pair stays plain: depth is matched between two images of one kind,
+                // whatever the tracked image went through
                 let pair =
                     StereoPair::new(left.clone(), right).map_err(|_| FailReason::SizeMismatch)?;
                 (left, DepthSource::Right(Box::new(pair)), None)
             }
         };
-        if (gray.width(), gray.height()) != (camera.width, camera.height) {
+        if (plain.width(), plain.height()) != (camera.width, camera.height) {
             return Err(FailReason::SizeMismatch);
         }
-        // an integer sum (vectorised; exact, as was the f64 sum of integers below 2^53)
-        let sum: u64 = gray.data().iter().map(|&v| u64::from(v)).sum();
-        let mean = sum as f64 / gray.data().len().max(1) as f64;
+        // the scene's light, before any contrast enhancement
+        // (an integer sum: vectorised; exact, as was the f64 sum of integers below 2^53)
+        let sum: u64 = plain.data().iter().map(|&v| u64::from(v)).sum();
+        let mean = sum as f64 / plain.data().len().max(1) as f64;
         if mean < self.config.min_mean_intensity {
             return Err(FailReason::TooDark { mean_grey: mean });
         }
+        let (gray, clahe, (pixels, descriptors), other) =
+            self.choose_image(plain, colors.as_ref())?;
         let baseline_m = match self.rig {
             Rig::Stereo { baseline_m, .. } => baseline_m,
             Rig::Rgbd { .. } => 0.0,
@@ -276,6 +295,8 @@ impl Preprocessor {
             timestamp,
             camera,
             pyramid: None,
+            clahe,
+            bridge: None,
             features: Features::default(),
             map_source: MapSource::default(),
             place: None,
@@ -283,7 +304,20 @@ impl Preprocessor {
             depth,
             baseline_m,
         };
-        self.detect(&mut frame)?;
+        if self.orb.is_none() {
+            let level = self.config.klt.max_level;
+            frame.pyramid = Some(KltPyramid::new(&frame.gray, level));
+            frame.bridge = other.map(|g| KltPyramid::new(&g, level));
+        }
+        let points = match (&frame.depth, &self.orb) {
+            (DepthSource::Image(_), None) => Vec::new(),
+            _ => frame.lift(&pixels, &self.config)?,
+        };
+        frame.features = Features {
+            pixels,
+            points,
+            descriptors,
+        };
         if self.config.loop_closure.enabled {
             frame.place = Some(self.place_features(&frame)?);
         }
@@ -299,11 +333,53 @@ impl Preprocessor {
         Ok(frame)
     }
 
-    fn gray_of(&mut self, color: &RgbImage) -> GrayImage {
-        match &mut self.clahe {
-            Some(c) => c.apply_gray(&rgb_to_lab_planes(color).0),
-            None => rgb_to_gray(color),
+    /// The grey image features are detected and tracked in, whether it went through CLAHE,
+    /// its detections, and on a frame where automatic CLAHE switched the other grey image
+    /// (see [`PreparedFrame::bridge`]). CLAHE works on CIELAB L for colour input.
+    fn choose_image(
+        &mut self,
+        plain: GrayImage,
+        color: Option<&RgbImage>,
+    ) -> Result<(GrayImage, bool, Detected, Option<GrayImage>), FailReason> {
+        let Some(kernel) = &mut self.clahe else {
+            let found = detect(self.orb.as_ref(), &self.config, &plain)?;
+            return Ok((plain, false, found, None));
+        };
+        let mut enhance = || match color {
+            Some(c) => kernel.apply_gray(&rgb_to_lab_planes(c).0),
+            None => kernel.apply_gray(&plain),
+        };
+        if self.config.use_clahe {
+            let gray = enhance();
+            let found = detect(self.orb.as_ref(), &self.config, &gray)?;
+            return Ok((gray, true, found, None));
         }
+        let auto = &self.config.auto_clahe;
+        if self.auto.on {
+            let enhanced = enhance();
+            self.auto.since_check += 1;
+            if self.auto.since_check >= auto.recheck_every {
+                self.auto.since_check = 0;
+                let found = detect(self.orb.as_ref(), &self.config, &plain)?;
+                if found.0.len() >= auto.off_at {
+                    self.auto.on = false;
+                    return Ok((plain, false, found, Some(enhanced)));
+                }
+            }
+            let found = detect(self.orb.as_ref(), &self.config, &enhanced)?;
+            return Ok((enhanced, true, found, None));
+        }
+        let found = detect(self.orb.as_ref(), &self.config, &plain)?;
+        if found.0.len() >= auto.on_below {
+            return Ok((plain, false, found, None));
+        }
+        let enhanced = enhance();
+        self.auto = AutoState {
+            on: true,
+            since_check: 0,
+        };
+        let found = detect(self.orb.as_ref(), &self.config, &enhanced)?;
+        Ok((enhanced, true, found, Some(plain)))
     }
 
     /// The frame's ORB features with depth: the front end's, or ORB's beside KLT.
@@ -333,40 +409,30 @@ impl Preprocessor {
                 acc
             }))
     }
+}
 
-    fn detect(&self, frame: &mut PreparedFrame) -> Result<(), FailReason> {
-        let (pixels, descriptors): (Vec<Point2<f64>>, Vec<Descriptor>) = match &self.orb {
-            Some(orb) => {
-                let f = orb.detect_and_compute(&frame.gray);
-                let px = f
-                    .keypoints
-                    .iter()
-                    .map(|k| Point2::new(f64::from(k.x), f64::from(k.y)))
-                    .collect();
-                (px, f.descriptors)
-            }
-            None => {
-                frame.pyramid = Some(KltPyramid::new(&frame.gray, self.config.klt.max_level));
-                let corners = shi_tomasi(&frame.gray, &self.config.shi_tomasi)
-                    .map_err(|e| FailReason::Kernel(e.to_string()))?;
-                let px = corners
-                    .iter()
-                    .map(|c| Point2::new(f64::from(c.x), f64::from(c.y)))
-                    .collect();
-                (px, Vec::new())
-            }
-        };
-        let points = match (&frame.depth, &self.orb) {
-            (DepthSource::Image(_), None) => Vec::new(),
-            _ => frame.lift(&pixels, &self.config)?,
-        };
-        frame.features = Features {
-            pixels,
-            points,
-            descriptors,
-        };
-        Ok(())
-    }
+/// ORB features (`orb` given) or Shi–Tomasi corners of `gray`.
+fn detect(orb: Option<&Orb>, config: &VoConfig, gray: &GrayImage) -> Result<Detected, FailReason> {
+    Ok(match orb {
+        Some(orb) => {
+            let f = orb.detect_and_compute(gray);
+            let px = f
+                .keypoints
+                .iter()
+                .map(|k| Point2::new(f64::from(k.x), f64::from(k.y)))
+                .collect();
+            (px, f.descriptors)
+        }
+        None => {
+            let corners = shi_tomasi(gray, &config.shi_tomasi)
+                .map_err(|e| FailReason::Kernel(e.to_string()))?;
+            let px = corners
+                .iter()
+                .map(|c| Point2::new(f64::from(c.x), f64::from(c.y)))
+                .collect();
+            (px, Vec::new())
+        }
+    })
 }
 
 impl PreparedFrame {

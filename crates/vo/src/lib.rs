@@ -47,7 +47,7 @@ pub mod relocalisation;
 pub mod spacing;
 pub mod voxel_map;
 
-pub use config::{FrontendKind, TrackingMode, VoConfig};
+pub use config::{AutoClaheConfig, FrontendKind, TrackingMode, VoConfig};
 pub use error::VoError;
 pub use metrics::{evaluate, VoMetrics};
 pub use odometry::{FailReason, FrameStatus, LocalBundle, Odometry};

@@ -89,6 +89,8 @@ struct RefFeature {
 struct Reference {
     world_from_camera: Pose3,
     pyramid: Option<KltPyramid>,
+    /// Whether `pyramid` went through CLAHE ([`PreparedFrame::clahe`]).
+    clahe: bool,
     features: Vec<RefFeature>,
 }
 
@@ -328,7 +330,12 @@ impl Odometry {
         reference: &Reference,
         frame: &PreparedFrame,
     ) -> Result<Vec<Match>, FailReason> {
-        let (Some(prev), Some(next)) = (&reference.pyramid, &frame.pyramid) else {
+        // a frame where automatic CLAHE switched is tracked into in the reference's grey levels
+        let next = match &frame.bridge {
+            Some(bridge) if reference.clahe != frame.clahe => Some(bridge),
+            _ => frame.pyramid.as_ref(),
+        };
+        let (Some(prev), Some(next)) = (&reference.pyramid, next) else {
             return Err(FailReason::Kernel("KLT front end without pyramids".into()));
         };
         let pts: Vec<(f32, f32)> = reference
@@ -491,6 +498,7 @@ impl Odometry {
         self.reference = Some(Reference {
             world_from_camera: self.world_from_camera,
             pyramid: frame.pyramid,
+            clahe: frame.clahe,
             features,
         });
         self.adjust_inline();
