@@ -44,8 +44,12 @@ const WRONG_CLOSURE_RAD: f64 = 0.0873;
 /// The merger's settings laid over the defaults: place queries every metre of a robot's path
 /// instead of every 3 m. The defaults suit buildings like Intel's (30 m across); in a 13 m
 /// office with stretches that share 8 m of corridor, 3 m gives one or two queries per shared
-/// stretch, fewer than the three mutually consistent closures a merge needs.
-const MERGE_SETTINGS: &str = "[places]\nspacing_m = 1.0\n";
+/// stretch, fewer than the three mutually consistent closures a merge needs. And each pair of
+/// robots searched both ways: robot 0's corridor submaps are often not pinned down in robot 1's
+/// map but robot 1's are in robot 0's, and the other way round (seeds 1-2 of office with 3
+/// robots: robot 0 unmerged one way, merged with no wrong closure both ways;
+/// docs/experiments/merge-both-ways.md).
+const MERGE_SETTINGS: &str = "[places]\nspacing_m = 1.0\nboth_ways = true\n";
 /// How long each wait on a process may last at most.
 const PATIENCE: Duration = Duration::from_secs(600);
 

@@ -78,11 +78,11 @@ impl PcmConfig {
 /// Two maps joined by a consistent set of closures.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PairLink {
-    /// The searched map.
+    /// The lower-numbered map of the pair.
     pub from_map: usize,
-    /// The querying map.
+    /// The higher-numbered map of the pair.
     pub to_map: usize,
-    /// `from_world_from_to_world`: where the querying map's frame lies in the searched map's,
+    /// `from_world_from_to_world`: where `to_map`'s frame lies in `from_map`'s,
     /// by the best closure of the set (highest product of the two goodnesses).
     pub from_from_to_frame: Pose2,
     /// Indices of the closures of the set.
@@ -104,7 +104,9 @@ pub fn select(
             ClosureStatus::FailedVerification | ClosureStatus::FreeSpaceConflict
         );
         if checked {
-            by_pair.entry((c.from_map, c.to_map)).or_default().push(i);
+            // both search directions of a pair of maps meet in one set
+            let pair = (c.from_map.min(c.to_map), c.from_map.max(c.to_map));
+            by_pair.entry(pair).or_default().push(i);
         }
     }
     let mut links = Vec::new();
@@ -161,7 +163,10 @@ fn runner_up_size(adjacency: &[Vec<bool>], weights: &[f64], best: &[usize]) -> u
     max_clique(&sub, &sub_weights).len()
 }
 
-/// A closure with what the check needs: the frame it implies, where it is in both maps.
+/// A closure with what the check needs: the frame it implies, where it is in both maps, all
+/// oriented from the lower-numbered map of its pair to the higher (a closure found by searching
+/// the later map's query in the earlier map and one found the other way round say the same
+/// thing in the same terms).
 #[derive(Debug, Clone, Copy)]
 struct Located {
     frame: Pose2,
@@ -177,11 +182,22 @@ impl Located {
             .get(c.from_keyframe)?
             .world_from_base;
         let to = keyframes.get(c.to_map)?.get(c.to_keyframe)?.world_from_base;
-        Some(Self {
-            frame: from * c.from_from_to * to.inverse(),
-            from_position: from.translation.vector,
-            to_position: to.translation.vector,
-            weight: c.goodness * c.reverse_goodness.unwrap_or(0.0),
+        let frame = from * c.from_from_to * to.inverse();
+        let weight = c.goodness * c.reverse_goodness.unwrap_or(0.0);
+        Some(if c.from_map <= c.to_map {
+            Self {
+                frame,
+                from_position: from.translation.vector,
+                to_position: to.translation.vector,
+                weight,
+            }
+        } else {
+            Self {
+                frame: frame.inverse(),
+                from_position: to.translation.vector,
+                to_position: from.translation.vector,
+                weight,
+            }
         })
     }
 }

@@ -2,7 +2,10 @@
 //! prior pose, by the global search that finds a robot in a saved map
 //! ([`slamkit_lidar::global_search`]).
 //!
-//! Every pair of maps is searched once: the later map's queries in the earlier map. A query is a
+//! Every pair of maps is searched once, the later map's queries in the earlier map, or with
+//! `both_ways` twice, each map's queries in the other: a place one robot's submap does not pin
+//! down (a stretch of corridor in a map that holds a longer one) may be pinned down by the other
+//! robot's submap of it, so a pair whose maps share little gets more closures. A query is a
 //! keyframe with its `half_keyframes` neighbours on each side in time, in the keyframe's base
 //! frame; queries are thinned in space, `spacing_m` apart, so each place the querying robot
 //! went through is asked about once however often it passed there.
@@ -26,6 +29,10 @@ pub struct PlacesConfig {
     pub half_keyframes: usize,
     /// Voxel size the query's points are thinned to \[m\].
     pub voxel_m: f64,
+    /// Search each pair of maps both ways (each map's queries in the other), not only the later
+    /// map's queries in the earlier map: more closures between maps that share a short stretch,
+    /// at twice the search time.
+    pub both_ways: bool,
 }
 
 impl Default for PlacesConfig {
@@ -34,6 +41,7 @@ impl Default for PlacesConfig {
             spacing_m: 3.0,
             half_keyframes: 10,
             voxel_m: 0.05,
+            both_ways: false,
         }
     }
 }
@@ -67,7 +75,8 @@ pub fn query_keyframes(keyframes: &[Keyframe], spacing_m: f64) -> Vec<usize> {
     chosen
 }
 
-/// Searches, for every pair of maps, the later map's queries in the earlier map; returns a
+/// Searches, for every pair of maps, the later map's queries in the earlier map (and the
+/// earlier map's in the later with `both_ways`); returns a
 /// closure for each unambiguous fix (status [`ClosureStatus::Inconsistent`] until verification
 /// and the consistency check decide).
 pub fn find_candidates(
@@ -94,13 +103,14 @@ pub fn find_candidates(
     timings.record_since("prepare_queries", start);
     let mut closures = Vec::new();
     for (from_map, searched) in keyframes.iter().enumerate() {
-        if from_map + 1 >= keyframes.len() {
-            break;
+        let searched_by = |to_map: usize| to_map > from_map || (c.both_ways && to_map < from_map);
+        if !(0..keyframes.len()).any(searched_by) {
+            continue;
         }
         let start = Instant::now();
         let search = GlobalSearch::new(searched, config.global_search.clone())?;
         timings.record_since("prepare_search", start);
-        for (to_map, map_queries) in queries.iter().enumerate().skip(from_map + 1) {
+        for (to_map, map_queries) in queries.iter().enumerate().filter(|(m, _)| searched_by(*m)) {
             for (to_keyframe, points) in map_queries {
                 let start = Instant::now();
                 stats.queries += 1;

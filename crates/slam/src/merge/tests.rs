@@ -238,6 +238,32 @@ fn pcm_rejects_a_planted_wrong_closure_and_joins_only_on_enough_agreement() {
     assert!(two_stories[..4]
         .iter()
         .all(|c| c.status == ClosureStatus::Ambiguous));
+
+    // found both ways (with `places.both_ways`): two closures from A's queries searched in B,
+    // stated from B to A, and one the usual way meet in one consistent set of three and place
+    // B where the usual three do; two of each direction alone would be too few
+    let mut both_ways: Vec<InterClosure> = [(0, 1), (8, 8), (15, 16)]
+        .iter()
+        .map(|&(f, t)| closure(f, t, right, &mut rng))
+        .collect();
+    for c in &mut both_ways[1..] {
+        *c = InterClosure {
+            from_map: 1,
+            from_keyframe: c.to_keyframe,
+            to_map: 0,
+            to_keyframe: c.from_keyframe,
+            from_from_to: c.from_from_to.inverse(),
+            ..*c
+        };
+    }
+    let links = select(&keyframes, &mut both_ways, &config);
+    assert!(
+        both_ways.iter().all(|c| c.status == Accepted),
+        "{both_ways:?}"
+    );
+    assert_eq!((links.len(), links[0].from_map, links[0].to_map), (1, 0, 1));
+    let err = a_from_b.inverse() * links[0].from_from_to_frame;
+    assert!(err.translation.vector.norm() < 0.1, "{err:?}");
 }
 
 #[test]
