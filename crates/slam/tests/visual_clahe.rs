@@ -8,7 +8,6 @@
 use slamkit_core::image::{GrayImage, RgbImage};
 use slamkit_core::Observation;
 use slamkit_io::{Dataset, DatasetFormat};
-use slamkit_slam::profile::Profile;
 use slamkit_slam::visual::{self, RunOptions, VisualSlam};
 use slamkit_testdata::data;
 use slamkit_vo::frame::{Preprocessor, SensorImages};
@@ -155,16 +154,7 @@ fn table(test: &str, rel: &str, format: DatasetFormat, profile: &str, frames: us
     let dataset = Dataset::open(&dir, format).unwrap();
     let frames = frames.min(dataset.len());
     for frontend in [FrontendKind::Klt, FrontendKind::Orb] {
-        let base = Profile::builtin(profile)
-            .unwrap()
-            .apply(
-                "vo",
-                VoConfig {
-                    frontend,
-                    ..VoConfig::default()
-                },
-            )
-            .unwrap();
+        let base = visual::session_settings(frontend, format, Some(profile), None, false).unwrap();
         let off = VoConfig {
             auto_clahe: AutoClaheConfig {
                 on_below: 0,

@@ -7,10 +7,9 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers fail loudly
 
 use slamkit_io::{Dataset, DatasetFormat};
-use slamkit_slam::profile::Profile;
 use slamkit_slam::visual::{self, RunOptions, VisualSlam};
 use slamkit_testdata::data;
-use slamkit_vo::{evaluate, FrameStatus, FrontendKind, VoConfig};
+use slamkit_vo::{evaluate, FrameStatus, FrontendKind};
 
 const KITTI_06: &str = "stereo/kitti_odometry_06_0000-0050";
 
@@ -34,16 +33,9 @@ fn tracks_every_frame(test: &str, frontend: FrontendKind, max_ate_m: f64) {
     let Some(dataset) = every_third_frame(test) else {
         return;
     };
-    let config = Profile::builtin("stereo")
-        .unwrap()
-        .apply(
-            "vo",
-            VoConfig {
-                frontend,
-                ..VoConfig::default()
-            },
-        )
-        .unwrap();
+    let config =
+        visual::session_settings(frontend, DatasetFormat::Kitti, Some("stereo"), None, false)
+            .unwrap();
     let mut session = VisualSlam::new(&config, visual::rig_of(&dataset)).unwrap();
     let result = visual::run(
         &mut session,

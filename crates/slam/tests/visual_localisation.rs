@@ -8,7 +8,6 @@
 use slamkit_eval::{ate, Alignment, Pairing};
 use slamkit_io::{Dataset, DatasetFormat};
 use slamkit_slam::map_file::MapFileError;
-use slamkit_slam::profile::Profile;
 use slamkit_slam::visual::{self, RunOptions, VisualSlam};
 use slamkit_slam::{Session, SlamError};
 use slamkit_testdata::data;
@@ -16,16 +15,14 @@ use slamkit_vo::frame::Rig;
 use slamkit_vo::{FrameStatus, FrontendKind, VoConfig};
 
 fn config(frontend: FrontendKind) -> VoConfig {
-    Profile::builtin("kinect-v1")
-        .unwrap()
-        .apply(
-            "vo",
-            VoConfig {
-                frontend,
-                ..VoConfig::default()
-            },
-        )
-        .unwrap()
+    visual::session_settings(
+        frontend,
+        DatasetFormat::SevenScenes,
+        Some("kinect-v1"),
+        None,
+        false,
+    )
+    .unwrap()
 }
 
 #[test]

@@ -25,17 +25,7 @@ fn run(
     profile: &str,
     frontend: FrontendKind,
 ) -> (VoMetrics, LoopStats, ClosureCheck) {
-    let mut config = Profile::builtin(profile)
-        .unwrap()
-        .apply(
-            "vo",
-            VoConfig {
-                frontend,
-                ..VoConfig::default()
-            },
-        )
-        .unwrap();
-    config.loop_closure.enabled = true;
+    let config = visual::session_settings(frontend, format, Some(profile), None, true).unwrap();
     let dataset = Dataset::open(dir, format).unwrap();
     let mut session = VisualSlam::new(&config, visual::rig_of(&dataset)).unwrap();
     let result = visual::run(

@@ -12,26 +12,22 @@ use std::path::Path;
 
 use slamkit_eval::{ate, Alignment, Pairing};
 use slamkit_io::{Dataset, DatasetFormat};
-use slamkit_slam::profile::Profile;
 use slamkit_slam::visual::{self, RunOptions, VisualRun, VisualSlam, VisualStats};
 use slamkit_testdata::data;
-use slamkit_vo::{FrontendKind, VoConfig};
+use slamkit_vo::FrontendKind;
 
 const REDKITCHEN: &str = "rgbd/7scenes_redkitchen_frames_0000-0599";
 
 /// Runs `dataset` with `frontend` and loop closure on.
 fn run(dataset: &Dataset, frontend: FrontendKind) -> (VisualRun, VisualStats) {
-    let mut config = Profile::builtin("kinect-v1")
-        .unwrap()
-        .apply(
-            "vo",
-            VoConfig {
-                frontend,
-                ..VoConfig::default()
-            },
-        )
-        .unwrap();
-    config.loop_closure.enabled = true;
+    let config = visual::session_settings(
+        frontend,
+        DatasetFormat::SevenScenes,
+        Some("kinect-v1"),
+        None,
+        true,
+    )
+    .unwrap();
     let mut session = VisualSlam::new(&config, visual::rig_of(dataset)).unwrap();
     let result = visual::run(
         &mut session,
