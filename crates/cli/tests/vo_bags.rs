@@ -92,17 +92,31 @@ fn vo_on_rgbd_bags_gives_the_folder_trajectory() {
         let path = written(test, bag, "metadata.yaml").unwrap();
         let out = tmp.path().join(bag);
         let stdout = vo(&path, &out, &["--profile", "kinect-v1"]);
-        assert!(stdout.contains(topics), "{bag}: {stdout}");
-        assert!(stdout.contains("60 frames, 0 colour and 0 depth images unpaired"), "{stdout}");
-        let (dx, dt, n) = largest_difference(
-            &folder_out.join("trajectory.tum"),
-            &out.join("trajectory.tum"),
-        );
-        println!("{bag}: {n} poses, largest difference {dx:.3e} m, {dt:.3e} s");
-        assert_eq!(n, 60, "{bag}");
-        assert!(dx <= 1e-6, "{bag}: {dx} m");
-        assert!(dt <= 1e-6, "{bag}: {dt} s");
+        assert_same_run(bag, &stdout, topics, 60, &folder_out, &out);
     }
+}
+
+/// The bag run `bag_out` (its printed `stdout`) read `topics` and paired all `frames` frames,
+/// and its trajectory is the folder run's `folder_out`, pose by pose, to 1e-6 m and 1e-6 s.
+fn assert_same_run(
+    label: &str,
+    stdout: &str,
+    topics: &str,
+    frames: usize,
+    folder_out: &Path,
+    bag_out: &Path,
+) {
+    assert!(stdout.contains(topics), "{label}: {stdout}");
+    let paired = format!("{frames} frames, 0 colour and 0 depth images unpaired");
+    assert!(stdout.contains(&paired), "{label}: {stdout}");
+    let (dx, dt, n) = largest_difference(
+        &folder_out.join("trajectory.tum"),
+        &bag_out.join("trajectory.tum"),
+    );
+    println!("{label}: {n} poses, largest difference {dx:.3e} m, {dt:.3e} s");
+    assert_eq!(n, frames, "{label}");
+    assert!(dx <= 1e-6, "{label}: {dx} m");
+    assert!(dt <= 1e-6, "{label}: {dt} s");
 }
 
 /// A simulated camera (`slamkit sim`, the office's ground robot for 23 s: a straight, a
@@ -123,19 +137,14 @@ fn vo_on_a_simulated_camera_bag_gives_the_folder_trajectory() {
     let stdout = vo(&sim.join("mcap"), &bag_out, &[]);
     let topics = "colour /camera/color/image_raw/compressed, depth \
                   /camera/aligned_depth_to_color/image_raw, camera /camera/color/camera_info";
-    assert!(stdout.contains(topics), "{stdout}");
-    assert!(
-        stdout.contains("231 frames, 0 colour and 0 depth images unpaired"),
-        "{stdout}"
+    assert_same_run(
+        "simulated camera bag",
+        &stdout,
+        topics,
+        231,
+        &folder_out,
+        &bag_out,
     );
-    let (dx, dt, n) = largest_difference(
-        &folder_out.join("trajectory.tum"),
-        &bag_out.join("trajectory.tum"),
-    );
-    println!("simulated camera bag: {n} poses, largest difference {dx:.3e} m, {dt:.3e} s");
-    assert_eq!(n, 231);
-    assert!(dx <= 1e-6, "{dx} m");
-    assert!(dt <= 1e-6, "{dt} s");
 }
 
 #[test]
