@@ -1,15 +1,15 @@
 #!/usr/bin/env bash
 # Converts the Freiburg benchmark's ROS 1 bags ($SLAMKIT_DATA/lidar2d/{intel,aces}/
 # *.clf.orig.bag) into ROS 2 bags with an independent tool, PyPI `rosbags` (pinned below):
-# `rosbags-convert` writes each as an MCAP bag with zstd-compressed chunks (rosbag2's default
-# MCAP profile compresses chunks with zstd) and as an SQLite .db3 bag; and, as the reference
-# the ROS 2 bags are compared with, into a ROS 1 bag again (`<name>_sorted.bag`): the same
-# messages in the order rosbags writes them (by record time), which is not the order the
-# original bags store them in. slamkit's `ros2_bags` tests (crates/cli/tests/ros2_bags.rs)
-# read them. Also the first 60 frames of 7-Scenes RedKitchen as RGB-D camera bags (MCAP and
-# .db3) with a reference folder, by scripts/rgbd_to_ros2_bags.py (rosbags, Pillow to decode
-# the images), and a simulated camera's run (`slamkit sim`, built here) as an MCAP bag, for the
-# `vo_bags` tests (crates/cli/tests/vo_bags.rs). Nothing here is committed.
+# scripts/ros1_to_ros2_bag.py runs rosbags' own conversion (message definitions, ROS 1 to CDR)
+# and writes each bag as MCAP with zstd-compressed chunks (rosbag2's default MCAP profile) and
+# as SQLite .db3, in the order the ROS 1 bag stores the messages (the order they were
+# received) with increasing record times, as a rosbag2 recorder writes them. slamkit's
+# `ros2_bags` tests (crates/cli/tests/ros2_bags.rs) read them. Also the first 60 frames of
+# 7-Scenes RedKitchen as RGB-D camera bags (MCAP and .db3) with a reference folder, by
+# scripts/rgbd_to_ros2_bags.py (rosbags, Pillow to decode the images), and a simulated
+# camera's run (`slamkit sim`, built here) as an MCAP bag, for the `vo_bags` tests
+# (crates/cli/tests/vo_bags.rs). Nothing here is committed.
 #
 # Usage: scripts/make_ros2_bags.sh [OUT_DIR]      (default: target/ros2-bags)
 # Needs python3 with venv; installs rosbags into OUT_DIR/venv. Bags already converted are kept.
@@ -39,19 +39,12 @@ for name in intel aces; do
         echo "make_ros2_bags: $src missing" >&2
         exit 1
     fi
-    if [ ! -f "$out/${name}_mcap/metadata.yaml" ]; then
-        rm -rf "$out/${name}_mcap"
-        "$venv/bin/rosbags-convert" --src "$src" --dst "$out/${name}_mcap" \
-            --dst-storage mcap --compress zstd --compress-mode storage
-    fi
-    if [ ! -f "$out/${name}_db3/metadata.yaml" ]; then
-        rm -rf "$out/${name}_db3"
-        "$venv/bin/rosbags-convert" --src "$src" --dst "$out/${name}_db3" --dst-storage sqlite3
-    fi
-    if [ ! -f "$out/${name}_sorted.bag" ]; then
-        "$venv/bin/rosbags-convert" --src "$src" --dst "$out/${name}_sorted.tmp.bag"
-        mv "$out/${name}_sorted.tmp.bag" "$out/${name}_sorted.bag"
-    fi
+    for storage in mcap db3; do
+        if [ ! -f "$out/${name}_$storage/metadata.yaml" ]; then
+            "$venv/bin/python" scripts/ros1_to_ros2_bag.py "$src" "$out/${name}_$storage" \
+                "$([ "$storage" = mcap ] && echo mcap || echo sqlite3)"
+        fi
+    done
 done
 rgbd="$data/rgbd/7scenes_redkitchen_frames_0000-0599"
 if [ ! -f "$out/redkitchen_db3/metadata.yaml" ]; then
