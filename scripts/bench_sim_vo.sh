@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # RGB-D visual odometry on simulated 60 s office sequences, one per seed (issue #5's bound:
-# ATE RMSE <= 0.02 m): the setup of crates/cli/tests/vo_sim.rs (ground robot at 0.25 m/s, camera
+# ATE RMSE <= 0.02 m): the setup of crates/cli/tests/cli/vo_sim.rs (ground robot at 0.25 m/s, camera
 # at 15 Hz) for several seeds; prints render time per frame and ATE RMSE per seed.
 # usage: scripts/bench_sim_vo.sh [SEED ...]      (default seeds 1 2 3 4 5)
 # VO=FILE passes a `slamkit vo --config` file (e.g. `[motion]\nweight_by_noise = false`).

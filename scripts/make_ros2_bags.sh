@@ -5,11 +5,11 @@
 # and writes each bag as MCAP with zstd-compressed chunks (rosbag2's default MCAP profile) and
 # as SQLite .db3, in the order the ROS 1 bag stores the messages (the order they were
 # received) with increasing record times, as a rosbag2 recorder writes them. slamkit's
-# `ros2_bags` tests (crates/cli/tests/ros2_bags.rs) read them. Also the first 60 frames of
+# `ros2_bags` tests (crates/cli/tests/cli/ros2_bags.rs) read them. Also the first 60 frames of
 # 7-Scenes RedKitchen as RGB-D camera bags (MCAP and .db3) with a reference folder, by
 # scripts/rgbd_to_ros2_bags.py (rosbags, Pillow to decode the images), and a simulated
 # camera's run (`slamkit sim`, built here) as an MCAP bag, for the `vo_bags` tests
-# (crates/cli/tests/vo_bags.rs). Nothing here is committed.
+# (crates/cli/tests/cli/vo_bags.rs). Nothing here is committed.
 #
 # Usage: scripts/make_ros2_bags.sh [OUT_DIR]      (default: target/ros2-bags)
 # Needs python3 with venv; installs rosbags into OUT_DIR/venv. Bags already converted are kept.

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Writes ROS 2 bags of RGB-D camera topics from a 7-Scenes folder, with PyPI `rosbags` (an
 independent writer of CDR and of both ROS 2 storages), for slamkit's `vo_bags` tests
-(crates/cli/tests/vo_bags.rs): `slamkit vo` on each bag must give the trajectory it gives on
+(crates/cli/tests/cli/vo_bags.rs): `slamkit vo` on each bag must give the trajectory it gives on
 the reference folder written beside them.
 
 Usage: rgbd_to_ros2_bags.py SRC_7SCENES_DIR OUT_DIR [FRAMES]     (default 60 frames)

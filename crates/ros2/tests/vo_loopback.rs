@@ -1,5 +1,5 @@
 //! `slamkit ros2 vo` live on loopback (issue 21): the 7-Scenes RedKitchen bag of
-//! `crates/cli/tests/vo_bags.rs` (60 frames, rgb8 colour, 16UC1 depth, one CameraInfo, written
+//! `crates/cli/tests/cli/vo_bags.rs` (60 frames, rgb8 colour, 16UC1 depth, one CameraInfo, written
 //! by PyPI `rosbags` through `scripts/make_ros2_bags.sh`) is played message by message from a
 //! plain RustDDS writer in this test into the node (colour raw, depth as `image_transport`'s
 //! `compressedDepth` PNG), with a RealSense-like `/tf_static` (`camera_link → <optical

@@ -1,0 +1,187 @@
+//! The map lifecycle on the Freiburg benchmark logs (Intel, ACES, MIT CSAIL), through the
+//! session API alone: map a log and save the map; load it in another session and localise the
+//! same log with no initial pose; map the first half, save, and continue the saved map with the
+//! second half. Each is scored with the benchmark's relations metric against the uninterrupted
+//! mapping run (issue: localisation within 1.2×, the continued map's whole trajectory within
+//! 1.3×). Speed is measured by `scripts/bench_lifecycle.sh`, not here.
+
+use slamkit_core::{LaserScan, Pose2, Trajectory};
+use slamkit_eval::relations::GroundTruthRelation;
+use slamkit_slam::lidar::LidarMap;
+use slamkit_slam::{LidarSlam, LidarSlamConfig, Session};
+use std::path::Path;
+
+struct Log {
+    scans: Vec<LaserScan>,
+    relations: Vec<GroundTruthRelation>,
+}
+
+fn log(test: &str, name: &str, file: &str) -> Option<Log> {
+    let dir = slamkit_testdata::data(test, &format!("lidar2d/{name}"))?;
+    let scans = slamkit_io::carmen::read_carmen(&dir.join(file))
+        .unwrap()
+        .scans;
+    let relations =
+        slamkit_io::relations::read_relations(&dir.join(format!("{name}.relations"))).unwrap();
+    Some(Log { scans, relations })
+}
+
+fn run(mut session: LidarSlam, scans: &[LaserScan]) -> LidarSlam {
+    for scan in scans {
+        session.push_scan(scan.clone());
+    }
+    session
+}
+
+fn error(log: &Log, trajectory: &Trajectory) -> f64 {
+    slamkit_eval::relations_error(&log.relations, trajectory)
+        .unwrap()
+        .trans_mean
+}
+
+fn lifecycle(test: &str, name: &str, file: &str) {
+    let Some(log) = log(test, name, file) else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let config = LidarSlamConfig::default();
+
+    // one uninterrupted mapping run, saved
+    let mapping = run(
+        LidarSlam::new(config.clone(), Pose2::identity()).unwrap(),
+        &log.scans,
+    );
+    let mapped = error(&log, &mapping.trajectory());
+    let full = dir.path().join("full.skmap");
+    mapping.save(&full).unwrap();
+    let bytes = std::fs::metadata(&full).unwrap().len();
+    assert!(bytes < 3_000_000, "{name}: map of {bytes} bytes");
+
+    // round trip: the map another run loads is the one this run saved, and it saves and
+    // loads again to the same bytes and the same map
+    let (loaded, header) = LidarMap::load(&full).unwrap();
+    assert_eq!(loaded.keyframes.len(), mapping.map().keyframes.len());
+    // edges as (x, y, θ): the file stores the angle, so a rotation whose complex number
+    // drifted off unit length in memory is read back unit
+    let xyt = |e: &slamkit_lidar::pose_graph::Edge| {
+        let p = e.from_from_to;
+        (e.from, e.to, p.translation.vector, p.rotation.angle())
+    };
+    let saved: Vec<_> = mapping.map().edges.iter().map(xyt).collect();
+    let read: Vec<_> = loaded.edges.iter().map(xyt).collect();
+    assert_eq!(read.len(), saved.len());
+    for (a, b) in read.iter().zip(&saved) {
+        assert!(
+            a.0 == b.0 && a.1 == b.1 && (a.2 - b.2).norm() < 1e-12 && (a.3 - b.3).abs() < 1e-12
+        );
+    }
+    let again = dir.path().join("again.skmap");
+    loaded.to_file(header).unwrap().save(&again).unwrap();
+    assert!(std::fs::read(&again).unwrap() == std::fs::read(&full).unwrap());
+    assert!(LidarMap::load(&again).unwrap().0 == loaded);
+
+    // localisation in the saved map, start pose unknown
+    let localised = run(
+        LidarSlam::localise(config.clone(), loaded).unwrap(),
+        &log.scans,
+    );
+    let stats = localised.stats();
+    assert!(
+        stats.first_fix_scan.is_some(),
+        "{name}: never found: {stats:?}"
+    );
+    let localised_error = error(&log, &localised.trajectory());
+    assert_eq!(
+        localised.map().keyframes.len(),
+        mapping.map().keyframes.len()
+    );
+
+    // the first half mapped and saved, the second continued from the file
+    let half = log.scans.len() / 2;
+    let first = run(
+        LidarSlam::new(config.clone(), Pose2::identity()).unwrap(),
+        &log.scans[..half],
+    );
+    let part = dir.path().join("half.skmap");
+    first.save(&part).unwrap();
+    let (half_map, _) = LidarMap::load(&part).unwrap();
+    let continued = run(
+        LidarSlam::resume(config, half_map).unwrap(),
+        &log.scans[half..],
+    );
+    let whole = continued.map();
+    assert_eq!(
+        whole.scans.len(),
+        log.scans.len(),
+        "{name}: every scan in the map"
+    );
+    assert!(whole.keyframes.len() > first.map().keyframes.len());
+    let continued_error = error(&log, &whole.trajectory());
+
+    eprintln!(
+        "{name}: relations error mapping {mapped:.4} m, localisation {localised_error:.4} m \
+         (first fix at scan {:?}), continued {continued_error:.4} m; map {bytes} bytes",
+        stats.first_fix_scan
+    );
+    assert!(
+        localised_error <= 1.2 * mapped,
+        "{name}: localisation {localised_error} vs {mapped}"
+    );
+    assert!(
+        continued_error <= 1.3 * mapped,
+        "{name}: continued {continued_error} vs {mapped}"
+    );
+}
+
+#[test]
+fn intel_map_localise_continue() {
+    lifecycle(
+        "intel_map_localise_continue",
+        "intel",
+        "intel.fromrosbag.clf.gz",
+    );
+}
+
+#[test]
+fn aces_map_localise_continue() {
+    lifecycle(
+        "aces_map_localise_continue",
+        "aces",
+        "aces.fromrosbag.clf.gz",
+    );
+}
+
+#[test]
+fn mit_csail_map_localise_continue() {
+    lifecycle(
+        "mit_csail_map_localise_continue",
+        "mit-csail",
+        "mit-csail.clf",
+    );
+}
+
+#[test]
+fn a_map_of_another_rig_or_a_broken_file_is_one_clear_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("broken.skmap");
+    std::fs::write(&path, b"not a map at all").unwrap();
+    let err = chain(&LidarMap::load(&path).unwrap_err());
+    assert!(
+        err.contains("broken.skmap") && err.contains("not a slamkit map"),
+        "{err}"
+    );
+    let missing = dir.path().join("missing.skmap");
+    let err = chain(&LidarMap::load(Path::new(&missing)).unwrap_err());
+    assert!(err.contains("missing.skmap"), "{err}");
+}
+
+/// An error and its causes on one line, as the CLI prints them.
+fn chain(err: &dyn std::error::Error) -> String {
+    let mut text = err.to_string();
+    let mut source = err.source();
+    while let Some(cause) = source {
+        text = format!("{text}: {cause}");
+        source = cause.source();
+    }
+    text
+}

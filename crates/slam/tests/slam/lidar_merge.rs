@@ -1,0 +1,264 @@
+//! Many robots, one map, offline (issue 22): a Freiburg benchmark log cut into three
+//! consecutive parts, each mapped on its own from the origin (so the parts' relative poses are
+//! unknown), saved as a map file and merged with `slamkit_slam::merge`. Scored with the log's
+//! relations over all three parts' trajectories in the merged frame, against the uninterrupted
+//! mapping run of the whole log (issue: within 1.5×), and every accepted closure and every cut
+//! point checked against that run (a closure is wrong when the run disagrees by more than
+//! 0.3 m or 5°; the parts' relative poses at the cuts within 0.3 m and 10°). A part of another
+//! building merged with the three parts is left out. Logs: `$SLAMKIT_DATA/lidar2d/SOURCES.md`.
+//! Skipped when `SLAMKIT_DATA` is not set; run with `--release`.
+//!
+//! Intel meets the issue's bound. ACES and MIT CSAIL do not yet: their parts' global searches
+//! mostly score below the search's 0.8 goodness (ACES: true places at 0.65–0.8), so too few
+//! closures are found to join every part; at 0.6 ACES joined one pair rightly and another by
+//! four mutually consistent closures of a corridor seen the other way round (BENCHMARKS.md).
+//! Their tests hold what stands: no wrong closure accepted, and the parts that merge are placed
+//! right at their cuts. Every verified closure is printed with its free-space conflict and its
+//! error against the uninterrupted run (docs/experiments/map-merge.md).
+
+use slamkit_core::pose::pose3_to_pose2;
+use slamkit_core::{LaserScan, Pose2, Trajectory};
+use slamkit_eval::relations::GroundTruthRelation;
+use slamkit_slam::lidar::LidarMap;
+use slamkit_slam::merge::{merge_maps, ClosureStatus, InterClosure, MergeConfig, MergeOutcome};
+use slamkit_slam::{LidarSlam, LidarSlamConfig, Session};
+use std::path::Path;
+use std::time::Instant;
+
+struct Log {
+    scans: Vec<LaserScan>,
+    relations: Vec<GroundTruthRelation>,
+}
+
+fn log(test: &str, name: &str, file: &str) -> Option<Log> {
+    let dir = slamkit_testdata::data(test, &format!("lidar2d/{name}"))?;
+    let scans = slamkit_io::carmen::read_carmen(&dir.join(file))
+        .unwrap()
+        .scans;
+    let relations =
+        slamkit_io::relations::read_relations(&dir.join(format!("{name}.relations"))).unwrap();
+    Some(Log { scans, relations })
+}
+
+fn map(scans: &[LaserScan]) -> LidarSlam {
+    let mut session = LidarSlam::new(LidarSlamConfig::default(), Pose2::identity()).unwrap();
+    for scan in scans {
+        session.push_scan(scan.clone());
+    }
+    session
+}
+
+/// Mean translational relations error over the relations whose both ends `trajectory` holds.
+fn error(relations: &[GroundTruthRelation], trajectory: &Trajectory) -> f64 {
+    slamkit_eval::relations_error(relations, trajectory)
+        .unwrap()
+        .trans_mean
+}
+
+/// The pose of the scan at time `t` (exactly) in `trajectory`.
+fn pose_at(trajectory: &Trajectory, t: f64) -> Pose2 {
+    let p = trajectory
+        .poses
+        .iter()
+        .find(|p| p.timestamp == t)
+        .unwrap_or_else(|| panic!("no pose at {t}"));
+    pose3_to_pose2(&p.pose)
+}
+
+fn differ(a: &Pose2, b: &Pose2) -> (f64, f64) {
+    let d = a.inverse() * b;
+    (
+        d.translation.vector.norm(),
+        d.rotation.angle().abs().to_degrees(),
+    )
+}
+
+/// Maps the log in three parts, each from the origin, and saves and reloads each part's map;
+/// returns the maps and each part's relations error alone.
+fn parts(log: &Log, dir: &Path) -> (Vec<LidarMap>, Vec<f64>) {
+    let third = log.scans.len() / 3;
+    let cuts = [0, third, 2 * third, log.scans.len()];
+    let mut maps = Vec::new();
+    let mut errors = Vec::new();
+    for k in 0..3 {
+        let session = map(&log.scans[cuts[k]..cuts[k + 1]]);
+        errors.push(error(&log.relations, &session.trajectory()));
+        let path = dir.join(format!("part{k}.skmap"));
+        session.save(&path).unwrap();
+        maps.push(LidarMap::load(&path).unwrap().0);
+    }
+    (maps, errors)
+}
+
+/// What a merge of a log's three parts reached.
+struct Scored {
+    /// Inputs left out.
+    unmerged: Vec<usize>,
+    /// Mean relations error of all parts in the merged frame and of the uninterrupted run
+    /// (`None` when a part was left out) \[m\].
+    errors: Option<(f64, f64)>,
+}
+
+fn check_merge(
+    name: &str,
+    log: &Log,
+    full: &Trajectory,
+    maps: &[LidarMap],
+    part_errors: &[f64],
+) -> Scored {
+    let start = Instant::now();
+    let outcome = merge_maps(maps, &MergeConfig::default()).unwrap();
+    let seconds = start.elapsed().as_secs_f64();
+    let wrong = wrong_closures(&outcome, maps, full);
+    let unmerged = outcome.unmerged();
+    eprintln!(
+        "{name}: parts left out {unmerged:?}; {:?}; wrong accepted closures {wrong}; merge \
+         {seconds:.1} s",
+        outcome.stats
+    );
+    assert_eq!(wrong, 0, "{name}: wrong closures accepted");
+    // the cuts between parts that merged: the last scan of one and the first of the next
+    for k in 0..2 {
+        let (Some(before), Some(after)) = (
+            outcome.inputs[k].trajectory.as_ref(),
+            outcome.inputs[k + 1].trajectory.as_ref(),
+        ) else {
+            continue;
+        };
+        let (t1, t2) = (
+            before.poses.last().unwrap().timestamp,
+            after.poses[0].timestamp,
+        );
+        let merged_rel = pose_at(before, t1).inverse() * pose_at(after, t2);
+        let full_rel = pose_at(full, t1).inverse() * pose_at(full, t2);
+        let (m, deg) = differ(&merged_rel, &full_rel);
+        eprintln!("{name}: cut {k}: off by {m:.3} m, {deg:.2}°");
+        assert!(m <= 0.3 && deg <= 10.0, "{name}: cut {k}: {m} m, {deg}°");
+    }
+    if !unmerged.is_empty() {
+        return Scored {
+            unmerged,
+            errors: None,
+        };
+    }
+    // all three parts' scans in the merged frame, in time order
+    let mut merged = Trajectory::new();
+    for input in &outcome.inputs {
+        for p in &input.trajectory.as_ref().unwrap().poses {
+            merged.push(p.timestamp, p.pose);
+        }
+    }
+    assert_eq!(merged.len(), log.scans.len());
+    let merged_error = error(&log.relations, &merged);
+    let full_error = error(&log.relations, full);
+    eprintln!(
+        "{name}: relations error parts {:.4} / {:.4} / {:.4} m, merged {merged_error:.4} m \
+         ({:.2}×), uninterrupted {full_error:.4} m; timings {:?}",
+        part_errors[0],
+        part_errors[1],
+        part_errors[2],
+        merged_error / full_error,
+        outcome.timings.summary(),
+    );
+    Scored {
+        unmerged,
+        errors: Some((merged_error, full_error)),
+    }
+}
+
+/// How far the uninterrupted run's relative pose between a closure's keyframes is from the
+/// closure's \[m, °\].
+fn truth_error(c: &InterClosure, maps: &[LidarMap], full: &Trajectory) -> (f64, f64) {
+    let t_from = maps[c.from_map].keyframes[c.from_keyframe].scan.timestamp;
+    let t_to = maps[c.to_map].keyframes[c.to_keyframe].scan.timestamp;
+    let truth = pose_at(full, t_from).inverse() * pose_at(full, t_to);
+    differ(&truth, &c.from_from_to)
+}
+
+/// Accepted closures the uninterrupted run disagrees with by more than 0.3 m or 5°; prints
+/// every verified closure with its free-space conflict and its error.
+fn wrong_closures(outcome: &MergeOutcome, maps: &[LidarMap], full: &Trajectory) -> usize {
+    for c in outcome
+        .closures
+        .iter()
+        .filter(|c| c.status != ClosureStatus::FailedVerification)
+    {
+        let (m, deg) = truth_error(c, maps, full);
+        eprintln!(
+            "  closure {}:{} -> {}:{} goodness {:.2}/{:.2} free-space conflict {:.3} \
+             {:?}: off by {m:.2} m, {deg:.1}°",
+            c.from_map,
+            c.from_keyframe,
+            c.to_map,
+            c.to_keyframe,
+            c.goodness,
+            c.reverse_goodness.unwrap_or(0.0),
+            c.free_space_conflict.unwrap_or(f64::NAN),
+            c.status,
+        );
+    }
+    outcome
+        .closures
+        .iter()
+        .filter(|c| c.status == ClosureStatus::Accepted)
+        .filter(|c| {
+            let (m, deg) = truth_error(c, maps, full);
+            m > 0.3 || deg > 5.0
+        })
+        .count()
+}
+
+fn three_parts(test: &str, name: &str, file: &str) -> Option<(Scored, Vec<LidarMap>)> {
+    let log = log(test, name, file)?;
+    let full = map(&log.scans).trajectory();
+    let dir = tempfile::tempdir().unwrap();
+    let (maps, errors) = parts(&log, dir.path());
+    Some((check_merge(name, &log, &full, &maps, &errors), maps))
+}
+
+#[test]
+fn intel_in_three_parts_merges_and_a_part_of_aces_is_left_out() {
+    let Some((scored, mut maps)) = three_parts(
+        "intel_in_three_parts_merges_and_a_part_of_aces_is_left_out",
+        "intel",
+        "intel.fromrosbag.clf.gz",
+    ) else {
+        return;
+    };
+    assert!(
+        scored.unmerged.is_empty(),
+        "intel: {:?} left out",
+        scored.unmerged
+    );
+    let (merged, full) = scored.errors.unwrap();
+    assert!(merged <= 1.5 * full, "intel: merged {merged} vs {full}");
+    let aces = log("aces_part", "aces", "aces.fromrosbag.clf.gz").unwrap();
+    let third = aces.scans.len() / 3;
+    maps.insert(1, map(&aces.scans[..third]).map());
+    let outcome = merge_maps(&maps, &MergeConfig::default()).unwrap();
+    eprintln!("intel + aces part: {:?}", outcome.stats);
+    assert_eq!(outcome.unmerged(), [1], "{:?}", outcome.stats);
+    assert!(outcome
+        .closures
+        .iter()
+        .filter(|c| c.from_map == 1 || c.to_map == 1)
+        .all(|c| c.status != ClosureStatus::Accepted));
+}
+
+#[test]
+fn aces_in_three_parts_accepts_no_wrong_closure() {
+    three_parts(
+        "aces_in_three_parts_accepts_no_wrong_closure",
+        "aces",
+        "aces.fromrosbag.clf.gz",
+    );
+}
+
+#[test]
+fn mit_csail_in_three_parts_accepts_no_wrong_closure() {
+    three_parts(
+        "mit_csail_in_three_parts_accepts_no_wrong_closure",
+        "mit-csail",
+        "mit-csail.clf",
+    );
+}
