@@ -394,8 +394,8 @@ const MAX_SQUARE_CELLS: f64 = 1e8;
 
 /// A likelihood field of target points with the maxima the branch and bound reads, built once
 /// and matched against many sources ([`LikelihoodField::match_headings`]). A map that does not
-/// change between queries (the anchors of a global search) then pays for its fields once rather
-/// than at every query, where they were a third of the search's time.
+/// change between queries (the anchors of a global search) then builds its fields once rather
+/// than at every query.
 ///
 /// ```
 /// use nalgebra::{Point2, Vector2};
