@@ -356,80 +356,241 @@ pub fn correlative_match_headings(
     config: &CorrelativeConfig,
 ) -> Result<Vec<CorrelativeResult>, LidarError> {
     validate(config)?;
-    if source.len() < config.min_points.max(1) {
-        return Err(LidarError::TooFewPoints {
-            got: source.len(),
-            min: config.min_points.max(1),
-        });
-    }
     let res = config.resolution_m;
-    let reach_m = source.iter().map(|p| p.coords.norm()).fold(0.0, f64::max);
     let centre = Point2::from(*translation);
-    let half = reach_m + config.linear_window_m + 4.0 * config.sigma_m + res;
+    let half = LikelihoodField::half_m_for_reach(reach(source), config);
     let origin = centre - Vector2::new(half, half);
     let side = (2.0 * half / res).ceil() as i64 + 1;
-    let coarse = config.coarse_cells.max(1);
-
-    // Rotation step: the farthest point moves by at most one cell (Olson 2009, eq. 11).
-    let step = (1.0 - res * res / (2.0 * reach_m.max(res).powi(2)))
-        .clamp(-1.0, 1.0)
-        .acos()
-        .min(config.max_angular_step_rad)
-        .max(1e-4);
-    let n_ang = (config.angular_window_rad / step).ceil() as i64;
-    let sweeps: Vec<Sweep> = headings
-        .iter()
-        .map(|&theta0| {
-            let angles: Vec<f64> = (-n_ang..=n_ang).map(|a| theta0 + a as f64 * step).collect();
-            let footprints = angles
-                .iter()
-                .map(|&theta| {
-                    let pose = Pose2::new(*translation, theta);
-                    source
-                        .iter()
-                        .map(|p| lattice_cell(&origin, res, &(pose * p)))
-                        .collect()
-                })
-                .collect();
-            (angles, footprints)
-        })
-        .collect();
+    let sweeps = Sweeps::new(source, translation, headings, &origin, config)?;
     let w = (config.linear_window_m / res).ceil() as i64;
     // Only the cells the shifted footprints (and the bound's windows beyond them) can read are
     // built: the same cells, with the same values, as the whole square around the guess.
-    let (lo, hi) = sweeps.iter().flat_map(|(_, f)| f.iter().flatten()).fold(
-        ((i64::MAX, i64::MAX), (i64::MIN, i64::MIN)),
-        |(lo, hi), &(i, j)| ((lo.0.min(i), lo.1.min(j)), (hi.0.max(i), hi.1.max(j))),
-    );
-    let reach_cells = w + coarse as i64 - 1;
+    let (lo, hi) = sweeps
+        .per_heading
+        .iter()
+        .flat_map(|(_, f)| f.iter().flatten())
+        .fold(
+            ((i64::MAX, i64::MAX), (i64::MIN, i64::MIN)),
+            |(lo, hi), &(i, j)| ((lo.0.min(i), lo.1.min(j)), (hi.0.max(i), hi.1.max(j))),
+        );
+    let reach_cells = w + config.coarse_cells.max(1) as i64 - 1;
     let lo = ((lo.0 - w).max(0), (lo.1 - w).max(0));
     let hi = (
         (hi.0 + reach_cells).min(side - 1),
         (hi.1 + reach_cells).min(side - 1),
     );
-    let field = Field::new(target, &origin, (lo, hi), res, config.sigma_m);
-    let bound_field = field.sliding_max(coarse);
-    let starts: Vec<i64> = (-w..=w).step_by(coarse).collect();
-    let results = sweeps
-        .into_iter()
-        .zip(headings)
-        .map(|((angles, footprints), &theta0)| {
-            let rotated: Vec<Footprint> = footprints
-                .into_iter()
-                .map(|cells| Footprint::new(cells, field.width))
-                .collect();
-            let blocks = bound_blocks(&bound_field, &rotated, &starts);
-            let best = best_in_blocks(&field, &rotated, &blocks, coarse as i64, w, n_ang as usize);
-            let (score, angle, di, dj) = best;
-            let theta = angles.get(angle).copied().unwrap_or(theta0);
-            let t = translation + Vector2::new(di as f64, dj as f64) * res;
-            CorrelativeResult {
-                target_from_source: Pose2::new(t, theta),
-                score: score.max(0.0) / source.len() as f64,
-            }
+    let field = LikelihoodField::build(target, &origin, (lo, hi), config);
+    Ok(field.best_per_heading(sweeps, translation, headings, source.len()))
+}
+
+/// Distance of the farthest of `points` from the origin.
+fn reach(points: &[Point2<f64>]) -> f64 {
+    points.iter().map(|p| p.coords.norm()).fold(0.0, f64::max)
+}
+
+/// Most cells a [`LikelihoodField::square`] may have (0.8 GB of cells): a larger square is a
+/// mistake in its size, better reported than allocated.
+const MAX_SQUARE_CELLS: f64 = 1e8;
+
+/// A likelihood field of target points with the maxima the branch and bound reads, built once
+/// and matched against many sources ([`LikelihoodField::match_headings`]). A map that does not
+/// change between queries (the anchors of a global search) then builds its fields once rather
+/// than at every query.
+///
+/// ```
+/// use nalgebra::{Point2, Vector2};
+/// use slamkit_core::Pose2;
+/// use slamkit_lidar::correlative::{CorrelativeConfig, LikelihoodField};
+///
+/// // an L-shaped corner seen from the origin, and the same scan moved by 0.1 m and 0.1 rad
+/// let target: Vec<Point2<f64>> = (0..40)
+///     .map(|i| Point2::new(2.0, -1.0 + 0.05 * i as f64))
+///     .chain((0..40).map(|i| Point2::new(0.05 * i as f64, 1.0)))
+///     .collect();
+/// let truth = Pose2::new(Vector2::new(0.1, 0.0), 0.1);
+/// let source: Vec<Point2<f64>> = target.iter().map(|p| truth.inverse() * p).collect();
+/// let config = CorrelativeConfig::default();
+/// // sources reaching up to 3 m from the field's centre
+/// let half = LikelihoodField::half_m_for_reach(3.0, &config);
+/// let field = LikelihoodField::square(&target, &Vector2::zeros(), half, &config)?;
+/// let best = field.match_headings(&source, &Vector2::zeros(), &[0.0])?;
+/// let err = truth.inverse() * best[0].target_from_source;
+/// assert!(err.translation.vector.norm() < 0.05 && err.rotation.angle().abs() < 0.02);
+/// # Ok::<(), slamkit_lidar::LidarError>(())
+/// ```
+pub struct LikelihoodField {
+    config: CorrelativeConfig,
+    field: Field,
+    bound: Field,
+}
+
+impl LikelihoodField {
+    /// The half-side [`LikelihoodField::square`] needs for sources whose points reach up to
+    /// `reach_m` from their own origin to be scored in full at every pose of `config`'s window:
+    /// the window, the reach, the field's tail (4σ) and one cell for rounding.
+    pub fn half_m_for_reach(reach_m: f64, config: &CorrelativeConfig) -> f64 {
+        reach_m + config.linear_window_m + 4.0 * config.sigma_m + config.resolution_m
+    }
+
+    /// The field of `target` on the square of half-side `half_m` around `centre`, on the
+    /// lattice of side `config.resolution_m` anchored at the square's corner, for matches with
+    /// `config`'s windows. Cells beyond the square read as empty, so a source should reach no
+    /// farther than [`LikelihoodField::half_m_for_reach`] allows.
+    pub fn square(
+        target: &[Point2<f64>],
+        centre: &Vector2<f64>,
+        half_m: f64,
+        config: &CorrelativeConfig,
+    ) -> Result<Self, LidarError> {
+        validate(config)?;
+        let side_f = (2.0 * half_m / config.resolution_m).ceil() + 1.0;
+        check_fields(
+            [(
+                "half_m",
+                half_m,
+                half_m > 0.0 && side_f * side_f <= MAX_SQUARE_CELLS,
+            )],
+            "out of range (> 0, finite, at most 10⁸ cells of resolution_m)",
+        )?;
+        let origin = Point2::from(centre - Vector2::new(half_m, half_m));
+        let side = side_f as i64;
+        Ok(Self::build(
+            target,
+            &origin,
+            ((0, 0), (side - 1, side - 1)),
+            config,
+        ))
+    }
+
+    /// The field of `target` on the lattice cells from `lo` to `hi` (inclusive), with its
+    /// maxima over the branch and bound's blocks.
+    fn build(
+        target: &[Point2<f64>],
+        origin: &Point2<f64>,
+        cells: ((i64, i64), (i64, i64)),
+        config: &CorrelativeConfig,
+    ) -> Self {
+        let field = Field::new(target, origin, cells, config.resolution_m, config.sigma_m);
+        let bound = field.sliding_max(config.coarse_cells.max(1));
+        Self {
+            config: config.clone(),
+            field,
+            bound,
+        }
+    }
+
+    /// Bytes the field's cells take (the field and its maxima).
+    pub fn bytes(&self) -> usize {
+        (self.field.cells.len() + self.bound.cells.len()) * std::mem::size_of::<f32>()
+    }
+
+    /// [`correlative_match_headings`] of `source` against this field: the best pose in the
+    /// field's window around `translation` from each of `headings`, one result per heading.
+    pub fn match_headings(
+        &self,
+        source: &[Point2<f64>],
+        translation: &Vector2<f64>,
+        headings: &[f64],
+    ) -> Result<Vec<CorrelativeResult>, LidarError> {
+        let sweeps = Sweeps::new(
+            source,
+            translation,
+            headings,
+            &self.field.origin,
+            &self.config,
+        )?;
+        Ok(self.best_per_heading(sweeps, translation, headings, source.len()))
+    }
+
+    /// The branch and bound over each heading's sweep: its best pose and mean score.
+    fn best_per_heading(
+        &self,
+        sweeps: Sweeps,
+        translation: &Vector2<f64>,
+        headings: &[f64],
+        n_source: usize,
+    ) -> Vec<CorrelativeResult> {
+        let res = self.config.resolution_m;
+        let coarse = self.config.coarse_cells.max(1);
+        let w = (self.config.linear_window_m / res).ceil() as i64;
+        let starts: Vec<i64> = (-w..=w).step_by(coarse).collect();
+        let n_ang = sweeps.n_ang;
+        sweeps
+            .per_heading
+            .into_iter()
+            .zip(headings)
+            .map(|((angles, footprints), &theta0)| {
+                let rotated: Vec<Footprint> = footprints
+                    .into_iter()
+                    .map(|cells| Footprint::new(cells, self.field.width))
+                    .collect();
+                let blocks = bound_blocks(&self.bound, &rotated, &starts);
+                let best = best_in_blocks(&self.field, &rotated, &blocks, coarse as i64, w, n_ang);
+                let (score, angle, di, dj) = best;
+                let theta = angles.get(angle).copied().unwrap_or(theta0);
+                let t = translation + Vector2::new(di as f64, dj as f64) * res;
+                CorrelativeResult {
+                    target_from_source: Pose2::new(t, theta),
+                    score: score.max(0.0) / n_source as f64,
+                }
+            })
+            .collect()
+    }
+}
+
+/// The rotations tried from each heading and the source's lattice cells at each, and the
+/// number of rotation steps on each side of a heading.
+struct Sweeps {
+    per_heading: Vec<Sweep>,
+    n_ang: usize,
+}
+
+impl Sweeps {
+    /// The rotations of `source` about `translation` in `config`'s angular window around each
+    /// of `headings`, its points' cells in the lattice anchored at `origin`.
+    fn new(
+        source: &[Point2<f64>],
+        translation: &Vector2<f64>,
+        headings: &[f64],
+        origin: &Point2<f64>,
+        config: &CorrelativeConfig,
+    ) -> Result<Self, LidarError> {
+        if source.len() < config.min_points.max(1) {
+            return Err(LidarError::TooFewPoints {
+                got: source.len(),
+                min: config.min_points.max(1),
+            });
+        }
+        let res = config.resolution_m;
+        // Rotation step: the farthest point moves by at most one cell (Olson 2009, eq. 11).
+        let step = (1.0 - res * res / (2.0 * reach(source).max(res).powi(2)))
+            .clamp(-1.0, 1.0)
+            .acos()
+            .min(config.max_angular_step_rad)
+            .max(1e-4);
+        let n_ang = (config.angular_window_rad / step).ceil() as i64;
+        let per_heading = headings
+            .iter()
+            .map(|&theta0| {
+                let angles: Vec<f64> = (-n_ang..=n_ang).map(|a| theta0 + a as f64 * step).collect();
+                let footprints = angles
+                    .iter()
+                    .map(|&theta| {
+                        let pose = Pose2::new(*translation, theta);
+                        source
+                            .iter()
+                            .map(|p| lattice_cell(origin, res, &(pose * p)))
+                            .collect()
+                    })
+                    .collect();
+                (angles, footprints)
+            })
+            .collect();
+        Ok(Self {
+            per_heading,
+            n_ang: n_ang as usize,
         })
-        .collect();
-    Ok(results)
+    }
 }
 
 /// The rotations tried from one heading, and the source's lattice cells at each.

@@ -146,3 +146,46 @@ fn bad_input_is_an_error() {
     let empty_target = correlative_match(&target, &[], &Pose2::identity(), &config).unwrap();
     assert_eq!(empty_target.score, 0.0);
 }
+
+#[test]
+fn a_field_built_once_gives_the_per_call_results_and_serves_other_sources() {
+    let config = CorrelativeConfig::default();
+    let a = Pose2::new(Vector2::new(1.0, 1.0), -0.4);
+    let b = Pose2::new(Vector2::new(1.2, 0.9), -0.3);
+    let (source, target) = scans(&a, &b);
+    let headings = [0.0, 0.5, -2.0];
+    let per_call =
+        correlative_match_headings(&source, &target, &Vector2::zeros(), &headings, &config)
+            .unwrap();
+    // On the per-call lattice (the same corner), the whole square holds the same cells.
+    let reach = source.iter().map(|p| p.coords.norm()).fold(0.0, f64::max);
+    let half = LikelihoodField::half_m_for_reach(reach, &config);
+    let field = LikelihoodField::square(&target, &Vector2::zeros(), half, &config).unwrap();
+    assert_eq!(
+        field
+            .match_headings(&source, &Vector2::zeros(), &headings)
+            .unwrap(),
+        per_call
+    );
+    // One field wider than any source, matched against scans from elsewhere in the room.
+    let wide = LikelihoodField::half_m_for_reach(30.0, &config);
+    let field = LikelihoodField::square(&target, &Vector2::zeros(), wide, &config).unwrap();
+    assert!(field.bytes() >= 2 * 4 * ((2.0 * wide / config.resolution_m) as usize).pow(2));
+    for b in [
+        Pose2::new(Vector2::new(0.8, 1.3), -0.2),
+        Pose2::new(Vector2::new(1.3, 0.7), -0.5),
+    ] {
+        let (source, _) = scans(&a, &b);
+        let got = field
+            .match_headings(&source, &Vector2::zeros(), &[0.0])
+            .unwrap()[0];
+        let (dt, dr) = error(&got.target_from_source, &(a.inverse() * b));
+        assert!(dt < 0.06 && dr < 1.5f64.to_radians(), "{dt} m {dr} rad");
+    }
+    assert!(matches!(
+        field.match_headings(&[], &Vector2::zeros(), &[0.0]),
+        Err(LidarError::TooFewPoints { .. })
+    ));
+    assert!(LikelihoodField::square(&target, &Vector2::zeros(), 0.0, &config).is_err());
+    assert!(LikelihoodField::square(&target, &Vector2::zeros(), 1e6, &config).is_err());
+}
