@@ -412,13 +412,22 @@ impl IcpSlam {
     /// global localisation: this does not search). The scans that follow are matched to the
     /// old keyframes nearest to the robot, the first new keyframe is chained to the nearest,
     /// and loop closures join later ones to the rest of the old map.
+    ///
+    /// A continued map adds keyframes on its old ground as before ([`RevisitConfig`] is not
+    /// applied): with it, continuing the first half of ACES with the second gave a relations
+    /// error of 0.283 m against 0.038 m for the uninterrupted run (the lifecycle test), and
+    /// why is not found yet.
     pub fn resume(
         config: IcpSlamConfig,
         keyframes: Vec<Keyframe>,
         edges: Vec<Edge>,
         world_from_base: Pose2,
     ) -> Result<Self, LidarError> {
-        let mut slam = Self::new(config)?;
+        let revisit = RevisitConfig {
+            enabled: false,
+            ..config.revisit.clone()
+        };
+        let mut slam = Self::new(IcpSlamConfig { revisit, ..config })?;
         for kf in &keyframes {
             slam.graph.add_node(kf.world_from_base);
         }
