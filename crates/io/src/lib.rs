@@ -24,6 +24,8 @@
 //! * [`g2o`]: 3D pose graphs in g2o's text format (`VERTEX_SE3:QUAT`, `EDGE_SE3:QUAT`, `FIX`).
 //! * [`time_order`]: timestamps stepping back in a lidar log, counted; a log mostly out of
 //!   order refused.
+//! * [`repeated_log`]: a lidar log played several times in a row (stamps shifted, odometry
+//!   continued), for long-run checks without a long file.
 //! * [`relations`]: ground-truth relations of the 2D SLAM benchmark (`*.relations`,
 //!   Kümmerle et al. 2009).
 //! * [`ply`]: point clouds as PLY for any viewer.
@@ -51,6 +53,7 @@ pub mod output_folder;
 pub mod ply;
 pub mod redwood;
 pub mod relations;
+pub mod repeated_log;
 pub mod seven_scenes;
 pub mod time_order;
 pub mod trajectory_file;

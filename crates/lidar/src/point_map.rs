@@ -174,6 +174,11 @@ impl KeyframeMap {
         self.keyframes_inserted
     }
 
+    /// True when the keyframe known as `id` is in the map.
+    pub fn holds(&self, id: usize) -> bool {
+        self.ids.contains(&id)
+    }
+
     /// True before the first keyframe.
     pub fn is_empty(&self) -> bool {
         self.points.is_empty()

@@ -13,6 +13,12 @@ pub fn peak_rss_bytes() -> Option<u64> {
     proc_kib("/proc/self/status", "VmHWM:").map(|kib| kib * 1024)
 }
 
+/// Resident memory of this process now in bytes (`VmRSS`), when the OS tells it: what a
+/// long run checks stays flat (the peak only ever grows).
+pub fn rss_bytes() -> Option<u64> {
+    proc_kib("/proc/self/status", "VmRSS:").map(|kib| kib * 1024)
+}
+
 /// The machine's memory in bytes (`MemTotal`), when the OS tells it.
 pub fn total_bytes() -> Option<u64> {
     proc_kib("/proc/meminfo", "MemTotal:").map(|kib| kib * 1024)
