@@ -22,7 +22,8 @@ use std::io::Read as _;
 use std::path::Path;
 use std::process::Command;
 
-fn slamkit(args: &[&str]) -> String {
+/// Runs the CLI with `args`, which must succeed, and returns what it printed.
+pub(crate) fn slamkit(args: &[&str]) -> String {
     let out = Command::new(env!("CARGO_BIN_EXE_slamkit"))
         .args(args)
         .output()
@@ -74,7 +75,7 @@ fn carmen_with_bag_floats(clf_gz: &Path, bag: &Path) -> String {
 
 /// Largest difference between the two trajectories' relative motions over the benchmark's
 /// relations \[m\], and the number of relations compared.
-fn largest_relation_difference(a: &Path, b: &Path, relations: &Path) -> (f64, usize) {
+pub(crate) fn largest_relation_difference(a: &Path, b: &Path, relations: &Path) -> (f64, usize) {
     let load = |p: &Path| -> HashMap<u64, slamkit_core::Pose3> {
         let (traj, _) = read_trajectory(p).unwrap();
         traj.poses

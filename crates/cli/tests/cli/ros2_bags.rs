@@ -18,25 +18,9 @@
 //! Skipped only when the converted bags are absent and `SLAMKIT_DATA` is unset; with
 //! `SLAMKIT_DATA` set, missing bags are a failure (run the script).
 
+use crate::bag::{largest_relation_difference, slamkit};
 use slamkit_io::bag::{read_scan_log, ScanTopics};
-use slamkit_io::relations::read_relations;
-use slamkit_io::trajectory_file::read_trajectory;
-use std::collections::HashMap;
 use std::path::{Path, PathBuf};
-use std::process::Command;
-
-fn slamkit(args: &[&str]) -> String {
-    let out = Command::new(env!("CARGO_BIN_EXE_slamkit"))
-        .args(args)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "slamkit {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout).unwrap()
-}
 
 /// The converted bag `target/ros2-bags/<name>`, or `None` (skipped) when it is absent and
 /// `SLAMKIT_DATA` is unset.
@@ -52,33 +36,6 @@ fn converted(test: &str, name: &str) -> Option<PathBuf> {
         "{}: missing although SLAMKIT_DATA is set; run scripts/make_ros2_bags.sh",
         dir.display()
     );
-}
-
-/// Largest difference between two trajectories' relative motions over the benchmark's
-/// relations \[m\], and the number of relations compared.
-fn largest_relation_difference(a: &Path, b: &Path, relations: &Path) -> (f64, usize) {
-    let load = |p: &Path| -> HashMap<u64, slamkit_core::Pose3> {
-        let (traj, _) = read_trajectory(p).unwrap();
-        traj.poses
-            .iter()
-            .map(|p| (p.timestamp.to_bits(), p.pose))
-            .collect()
-    };
-    let (a, b) = (load(a), load(b));
-    let mut worst = 0.0f64;
-    let mut n = 0;
-    for rel in read_relations(relations).unwrap() {
-        let (k1, k2) = (rel.t1.to_bits(), rel.t2.to_bits());
-        let (Some(a1), Some(a2), Some(b1), Some(b2)) =
-            (a.get(&k1), a.get(&k2), b.get(&k1), b.get(&k2))
-        else {
-            continue;
-        };
-        let d = (a1.inverse() * a2).translation.vector - (b1.inverse() * b2).translation.vector;
-        worst = worst.max(d.norm());
-        n += 1;
-    }
-    (worst, n)
 }
 
 /// What `slamkit lidar` reads from `bag`: every scan with its interpolated odometry, in
