@@ -5,26 +5,11 @@
 //! mapping run (issue: localisation within 1.2×, the continued map's whole trajectory within
 //! 1.3×). Speed is measured by `scripts/bench_lifecycle.sh`, not here.
 
+use crate::benchmark_log::{log, Log};
 use slamkit_core::{LaserScan, Pose2, Trajectory};
-use slamkit_eval::relations::GroundTruthRelation;
 use slamkit_slam::lidar::LidarMap;
 use slamkit_slam::{LidarSlam, LidarSlamConfig, Session};
 use std::path::Path;
-
-struct Log {
-    scans: Vec<LaserScan>,
-    relations: Vec<GroundTruthRelation>,
-}
-
-fn log(test: &str, name: &str, file: &str) -> Option<Log> {
-    let dir = slamkit_testdata::data(test, &format!("lidar2d/{name}"))?;
-    let scans = slamkit_io::carmen::read_carmen(&dir.join(file))
-        .unwrap()
-        .scans;
-    let relations =
-        slamkit_io::relations::read_relations(&dir.join(format!("{name}.relations"))).unwrap();
-    Some(Log { scans, relations })
-}
 
 fn run(mut session: LidarSlam, scans: &[LaserScan]) -> LidarSlam {
     for scan in scans {

@@ -20,6 +20,7 @@
 //! alone and again with it (the second merge searched every Intel pair again), and ACES is mapped
 //! once for both tests that use it (docs/experiments/ci-time.md).
 
+use crate::benchmark_log::{log, Log};
 use slamkit_core::pose::pose3_to_pose2;
 use slamkit_core::{LaserScan, Pose2, Trajectory};
 use slamkit_eval::relations::GroundTruthRelation;
@@ -29,21 +30,6 @@ use slamkit_slam::{LidarSlam, LidarSlamConfig, Session};
 use std::path::Path;
 use std::sync::OnceLock;
 use std::time::Instant;
-
-struct Log {
-    scans: Vec<LaserScan>,
-    relations: Vec<GroundTruthRelation>,
-}
-
-fn log(test: &str, name: &str, file: &str) -> Option<Log> {
-    let dir = slamkit_testdata::data(test, &format!("lidar2d/{name}"))?;
-    let scans = slamkit_io::carmen::read_carmen(&dir.join(file))
-        .unwrap()
-        .scans;
-    let relations =
-        slamkit_io::relations::read_relations(&dir.join(format!("{name}.relations"))).unwrap();
-    Some(Log { scans, relations })
-}
 
 fn map(scans: &[LaserScan]) -> LidarSlam {
     let mut session = LidarSlam::new(LidarSlamConfig::default(), Pose2::identity()).unwrap();

@@ -8,6 +8,7 @@
 //! `cargo test --release -p slamkit-slam --test slam drone_in_map::`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+mod benchmark_log;
 mod drone_in_map;
 mod ground_robot_map;
 mod lidar_damaged;
