@@ -419,4 +419,54 @@ mod tests {
         let outcome = search.search(&scan_points(&scan, 0.1, 20.0));
         assert!(matches!(outcome, GlobalOutcome::NotFound(_)), "{outcome:?}");
     }
+    /// Time of global searches on the Intel log: keyframes every 10th of the first 1500 scans
+    /// at their odometry poses, queried with 11-scan submaps from further on. A measurement
+    /// (`cargo test --release -p slamkit-lidar --lib global_search_time -- --ignored
+    /// --nocapture`), not a check.
+    #[test]
+    #[ignore]
+    fn global_search_time_on_intel() {
+        let Some(path) = slamkit_testdata::data(
+            "global_search_time_on_intel",
+            "lidar2d/intel/intel.fromrosbag.clf.gz",
+        ) else {
+            return;
+        };
+        let log = slamkit_io::carmen::read_carmen(&path).unwrap();
+        let keyframe = |k: usize| {
+            let scan = &log.scans[k];
+            let points = scan_points(scan, 0.1, 20.0);
+            let normals = estimate_normals(&points, 6, 0.5, 0.2);
+            Keyframe {
+                world_from_base: scan.odometry.unwrap_or_else(Pose2::identity),
+                points,
+                normals,
+            }
+        };
+        let keyframes: Vec<Keyframe> = (0..1500).step_by(10).map(keyframe).collect();
+        let search = GlobalSearch::new(&keyframes, GlobalSearchConfig::default()).unwrap();
+        let start = std::time::Instant::now();
+        let mut outcomes = Vec::new();
+        for q in (1600..2400).step_by(100) {
+            let centre = log.scans[q].odometry.unwrap_or_else(Pose2::identity);
+            let points: Vec<Point2<f64>> = (q - 50..=q + 50)
+                .step_by(10)
+                .flat_map(|k| {
+                    let odom = log.scans[k].odometry.unwrap_or_else(Pose2::identity);
+                    let rel = centre.inverse() * odom;
+                    scan_points(&log.scans[k], 0.1, 20.0)
+                        .into_iter()
+                        .map(move |p| rel * p)
+                })
+                .collect();
+            let points = voxel_downsample(&points, 0.05);
+            outcomes.push(search.search(&points));
+        }
+        eprintln!(
+            "{} anchors, {} searches in {:.2} s: {outcomes:?}",
+            search.anchors(),
+            outcomes.len(),
+            start.elapsed().as_secs_f64()
+        );
+    }
 }
