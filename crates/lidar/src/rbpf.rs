@@ -19,7 +19,12 @@
 //! and resampling leaves them one lineage, half of them also search their own past for the scan
 //! every second update and, when it matches, move there before the proposal
 //! ([`relocalise`](mod@relocalise)); the weights then choose between the moved and the unmoved
-//! particles. The output is
+//! particles. Those weights favour the unmoved particles (both are scored against a map whose
+//! ground around the robot is the recent, drifted pass), so which seeds close a loop is left to
+//! chance; with `relocalisation.confirmations` set, whole lineages move instead once
+//! consecutive searches agree on the correction (not the default: measured in
+//! docs/experiments/pf-seeds.md, it closes more seeds' loops but confirmed a false closure on
+//! one). The output is
 //! the trajectory of the particle with the highest log weight accumulated over its whole
 //! ancestry (GMapping's `weightSum`), read back through that ancestry; scans between two updates
 //! are placed by odometry, with the correction at the next update spread over them linearly.
@@ -211,6 +216,19 @@ struct Particle {
     /// resampling (GMapping's `weightSum`): picks the output trajectory.
     log_likelihood_sum: f64,
     node: Arc<Node>,
+    /// The lineage's last relocalisation match, not yet confirmed (`relocalisation.confirmations`).
+    closure: Option<PendingClosure>,
+}
+
+/// A lineage's relocalisation match waiting for agreement.
+#[derive(Debug, Clone, Copy)]
+struct PendingClosure {
+    /// The world-frame correction the match asked for: matched = correction · predicted.
+    correction: Pose2,
+    /// Matches in agreement so far.
+    count: usize,
+    /// Filter update of the last of them.
+    update: usize,
 }
 
 /// Memory used by the particles' maps.
@@ -241,6 +259,12 @@ pub struct RbpfStats {
     pub resamples: usize,
     /// Particle poses moved by a relocalisation match.
     pub relocalisations: usize,
+    /// Relocalisation searches that matched (with `relocalisation.confirmations`, each
+    /// lineage's match counts once).
+    pub relocalisation_matches: usize,
+    /// Corrections taken by a whole lineage after `relocalisation.confirmations` matches in
+    /// agreement.
+    pub closures: usize,
     /// True when the log's wheel odometry was used, false for scan-to-scan ICP odometry.
     pub wheel_odometry: bool,
     /// Scans scan-to-scan ICP odometry could not align.
@@ -350,6 +374,7 @@ impl Rbpf {
             log_weight: 0.0,
             log_likelihood_sum: 0.0,
             node,
+            closure: None,
         };
         self.particles = vec![particle; self.config.particles];
         Some(())
@@ -430,11 +455,17 @@ impl Rbpf {
         points.map(|p| Arc::new(self.config.relocalisation.keep(p)))
     }
 
-    /// Every few updates, moves each particle that finds the scan (its search `points`) in its
-    /// own past to the matched pose (less the odometry `increment`, which the proposal adds
-    /// back).
+    /// Moves particles that find the scan (its search `points`) in their own past to the
+    /// matched pose (less the odometry `increment`, which the proposal adds back): every few
+    /// updates a random fraction of the particles, each on its own match, or, with
+    /// `relocalisation.confirmations`, whole lineages on confirmed matches
+    /// ([`Rbpf::relocalise_lineages`]).
     fn relocalise(&mut self, points: &[Point2<f64>], increment: &Pose2) {
         let c = &self.config.relocalisation;
+        if c.confirmations > 0 {
+            self.relocalise_lineages(points, increment);
+            return;
+        }
         if self.stats.updates % c.every_updates.max(1) != 0 {
             return;
         }
@@ -447,8 +478,104 @@ impl Rbpf {
             let Some(matched) = relocalise(&particle.node, &predicted, &source, c) else {
                 continue;
             };
+            self.stats.relocalisation_matches += 1;
             particle.world_from_base = matched * increment.inverse();
             self.stats.relocalisations += 1;
+        }
+    }
+
+    /// One search per lineage (the particles sharing their ancestor `min_separation_updates`
+    /// back have the same searchable past; the one of highest weight searches), every few
+    /// updates, and at the next update again for a lineage whose last search matched. A match
+    /// asks for a world-frame correction; once `confirmations` matches in a row ask for the
+    /// same correction (within `agree_m`, `agree_rad` at the prediction), every particle of
+    /// the lineage is moved by it, which keeps their spread. The decision is the searches'
+    /// agreement, not the weights (see [`RelocalisationConfig::confirmations`]), so a closure
+    /// found is taken whatever the seed; agreement over several updates, about a metre of
+    /// travel, rejects single false matches of a similar-looking place (not repeated ones: a
+    /// corridor can repeat its false match, docs/experiments/pf-seeds.md).
+    fn relocalise_lineages(&mut self, points: &[Point2<f64>], increment: &Pose2) {
+        let c = &self.config.relocalisation;
+        let now = self.stats.updates;
+        let due = now % c.every_updates.max(1) == 0;
+        for p in &mut self.particles {
+            let stale = p
+                .closure
+                .is_some_and(|q| now - q.update > c.pending_updates);
+            if stale {
+                p.closure = None;
+            }
+        }
+        let lineage = lineage_keys(&self.particles, c.min_separation_updates.max(1));
+        // The searching particle of each lineage: its highest weight.
+        let mut searchers: Vec<usize> = Vec::new();
+        for (i, key) in lineage.iter().enumerate() {
+            match searchers.iter_mut().find(|r| lineage[**r] == *key) {
+                Some(r) => {
+                    if self.particles[i].log_weight > self.particles[*r].log_weight {
+                        *r = i;
+                    }
+                }
+                None => searchers.push(i),
+            }
+        }
+        searchers.retain(|&r| due || self.particles[r].closure.is_some());
+        if searchers.is_empty() {
+            return;
+        }
+        let source = SearchSource::new(points, &c.search);
+        for r in searchers {
+            let searcher = &self.particles[r];
+            let predicted = searcher.world_from_base * increment;
+            let Some(matched) = relocalise(&searcher.node, &predicted, &source, c) else {
+                continue;
+            };
+            self.stats.relocalisation_matches += 1;
+            let key = lineage[r];
+            if agree(&predicted, &matched, c.min_jump_m, c.min_jump_rad) {
+                // Within the climb's reach: the lineage is where the old map says.
+                for (p, k) in self.particles.iter_mut().zip(&lineage) {
+                    if *k == key {
+                        p.closure = None;
+                    }
+                }
+                continue;
+            }
+            let correction = matched * predicted.inverse();
+            // The match agrees with the lineage's last one when that one's correction, applied
+            // to today's prediction, lands where this match did.
+            let agrees = |q: &PendingClosure| {
+                agree(
+                    &(q.correction * predicted),
+                    &matched,
+                    c.agree_m,
+                    c.agree_rad,
+                )
+            };
+            let count = searcher
+                .closure
+                .filter(|q| agrees(q))
+                .map_or(1, |q| q.count + 1);
+            let confirmed = count >= c.confirmations;
+            for (p, _) in self
+                .particles
+                .iter_mut()
+                .zip(&lineage)
+                .filter(|(_, k)| **k == key)
+            {
+                if confirmed {
+                    p.world_from_base = correction * p.world_from_base;
+                    p.closure = None;
+                    self.stats.relocalisations += 1;
+                } else {
+                    p.closure = Some(PendingClosure {
+                        correction,
+                        count,
+                        update: now,
+                    });
+                }
+            }
+            self.stats.closures += usize::from(confirmed);
         }
     }
 
@@ -556,6 +683,30 @@ impl Rbpf {
     pub fn timings(&self) -> &StageTimings {
         &self.timings
     }
+}
+
+/// Each particle's lineage: the address of its ancestor `depth` updates back (of its oldest
+/// node when the trajectory is shorter). Particles of one lineage share every older pose.
+fn lineage_keys(particles: &[Particle], depth: usize) -> Vec<*const Node> {
+    particles
+        .iter()
+        .map(|p| {
+            let mut node = &p.node;
+            for _ in 0..depth {
+                match &node.parent {
+                    Some(parent) => node = parent,
+                    None => break,
+                }
+            }
+            Arc::as_ptr(node)
+        })
+        .collect()
+}
+
+/// True when poses `a` and `b` are within `linear_m` and `angular_rad` of each other.
+fn agree(a: &Pose2, b: &Pose2, linear_m: f64, angular_rad: f64) -> bool {
+    (a.translation.vector - b.translation.vector).norm() <= linear_m
+        && wrap_angle(a.rotation.angle() - b.rotation.angle()).abs() <= angular_rad
 }
 
 fn ms(a: Instant, b: Instant) -> f64 {

@@ -320,3 +320,52 @@ fn a_tight_motion_prior_holds_the_climb_near_the_prediction() {
     assert!((loose - plain).abs() < 1e-9, "loose prior: x = {loose}");
     assert!((tight + 0.03).abs() < 0.002, "tight prior: x = {tight}");
 }
+
+/// Particles are of one lineage when they share their ancestor `depth` updates back; a
+/// trajectory shorter than that counts from its first node.
+#[test]
+fn lineages_are_the_ancestors_a_depth_back() {
+    let node = |scan: usize, parent: Option<&Arc<Node>>| {
+        Arc::new(Node {
+            scan,
+            world_from_base: Pose2::identity(),
+            cloud: None,
+            parent: parent.cloned(),
+        })
+    };
+    let root = node(0, None);
+    let (a, b) = (node(1, Some(&root)), node(1, Some(&root)));
+    let newest = [node(2, Some(&a)), node(2, Some(&a)), node(2, Some(&b))];
+    let grid = OccupancyGrid::new(OccupancyGridConfig::default()).unwrap();
+    let particles: Vec<Particle> = newest
+        .iter()
+        .map(|n| Particle {
+            world_from_base: Pose2::identity(),
+            grid: grid.clone(),
+            means: None,
+            log_weight: 0.0,
+            log_likelihood_sum: 0.0,
+            node: n.clone(),
+            closure: None,
+        })
+        .collect();
+    let one_back = lineage_keys(&particles, 1);
+    assert_eq!(one_back[0], one_back[1]);
+    assert_ne!(one_back[0], one_back[2]);
+    for depth in [2, 10] {
+        let keys = lineage_keys(&particles, depth);
+        assert!(
+            keys.iter().all(|k| *k == Arc::as_ptr(&root)),
+            "depth {depth}"
+        );
+    }
+}
+
+#[test]
+fn poses_agree_within_both_tolerances() {
+    let a = Pose2::new(Vector2::new(1.0, 2.0), 3.1);
+    let b = Pose2::new(Vector2::new(1.2, 2.0), -3.15);
+    assert!(agree(&a, &b, 0.25, 0.05), "the angle wraps");
+    assert!(!agree(&a, &b, 0.1, 0.05));
+    assert!(!agree(&a, &b, 0.25, 0.02));
+}
