@@ -4,7 +4,6 @@
 //! publishing its map updates; the merger collects them and fetches by query what it missed.
 //! With 30 % of the publications dropped, the merger's maps and their merge are the same as
 //! without loss.
-#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers fail loudly
 
 use slamkit_core::Pose2;
 use slamkit_fleet::{Merger, PeerConfig, RobotPublisher};
