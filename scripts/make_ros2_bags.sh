@@ -12,7 +12,8 @@
 # (crates/cli/tests/cli/vo_bags.rs). Nothing here is committed.
 #
 # Usage: scripts/make_ros2_bags.sh [OUT_DIR]      (default: target/ros2-bags)
-# Needs python3 with venv; installs rosbags into OUT_DIR/venv. Bags already converted are kept.
+# Needs python3 with venv; installs rosbags into OUT_DIR/venv (and stops there with VENV_ONLY=1).
+# Bags already converted are kept.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -31,6 +32,10 @@ if [ ! -x "$venv/bin/rosbags-convert" ] ||
     rm -rf "$venv"
     python3 -m venv "$venv"
     "$venv/bin/pip" install --quiet --disable-pip-version-check "rosbags==$ROSBAGS_VERSION" "pillow==$PILLOW_VERSION"
+fi
+# VENV_ONLY=1: only the virtualenv (`.ci/run` installs it while the builds run).
+if [ "${VENV_ONLY:-}" = 1 ]; then
+    exit 0
 fi
 
 for name in intel aces; do
