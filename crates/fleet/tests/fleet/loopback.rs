@@ -94,13 +94,7 @@ struct Run {
 }
 
 fn run(loss: f64) -> Run {
-    let port = slamkit_testdata::free_loopback_port();
-    let session = PeerConfig {
-        listen: vec![format!("tcp/127.0.0.1:{port}")],
-        connect: Vec::new(),
-    }
-    .open()
-    .unwrap();
+    let (session, port) = crate::listening_peer();
     let mut merger = Merger::new(session.clone(), "test").unwrap();
     let robots = [
         std::thread::spawn(move || robot("a", port, (-4.5, -2.0), (3.5, -2.2), 0.1, loss)),

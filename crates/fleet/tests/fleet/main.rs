@@ -7,3 +7,15 @@
 mod loopback;
 mod merged_map_inbox;
 mod store_file;
+
+/// A Zenoh peer listening on a free loopback port (a merger's side), and the port.
+fn listening_peer() -> (zenoh::Session, u16) {
+    let port = slamkit_testdata::free_loopback_port();
+    let session = slamkit_fleet::PeerConfig {
+        listen: vec![format!("tcp/127.0.0.1:{port}")],
+        connect: Vec::new(),
+    }
+    .open()
+    .unwrap();
+    (session, port)
+}

@@ -10,13 +10,7 @@ use zenoh::Wait;
 
 /// Two peers on loopback: the merger's side (listening) and a robot's (connected).
 fn peers() -> (zenoh::Session, zenoh::Session) {
-    let port = slamkit_testdata::free_loopback_port();
-    let merger = PeerConfig {
-        listen: vec![format!("tcp/127.0.0.1:{port}")],
-        connect: Vec::new(),
-    }
-    .open()
-    .unwrap();
+    let (merger, port) = crate::listening_peer();
     let robot = PeerConfig {
         listen: Vec::new(),
         connect: vec![format!("tcp/127.0.0.1:{port}")],
