@@ -30,5 +30,5 @@ packages=()
 for crate in "${@:-core vision map}"; do
     for c in $crate; do packages+=(-p "slamkit-$c"); done
 done
-cargo test --release --quiet --target "$target" "${packages[@]}" --lib -- \
+cargo test --profile arm-test --quiet --target "$target" "${packages[@]}" --lib -- \
     --skip rbpf::tests:: --skip icp_slam::tests::laps_on_mapped_ground
