@@ -6,13 +6,13 @@
 //! the laser's mounting must come from `/tf_static`, and `/map` and the layer topic must come
 //! with the layer of the last scan. Both sides find each other by unicast on `127.0.0.1` only
 //! (`ROS_LOCALHOST_ONLY`), on a domain of their own, so nothing leaves the machine.
-#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+use crate::loopback_discovery;
 use nalgebra::{Translation3, UnitQuaternion};
 use slamkit_core::pose::pose3_to_pose2;
 use slamkit_core::Pose3;
 use slamkit_io::bag::scans::Mounting;
-use slamkit_ros2::dds::{latched_qos, subscribe, Discovery};
+use slamkit_ros2::dds::{latched_qos, subscribe};
 use slamkit_ros2::msgs;
 use slamkit_ros2::{run_drone_node, run_drone_sim_node, DroneNodeConfig, DroneSimNodeConfig};
 use slamkit_sim::{SimConfig, Simulation, World};
@@ -29,11 +29,7 @@ const SPEED: f64 = 4.0;
 fn the_drone_node_maps_the_simulated_flight_over_loopback() {
     let started = Instant::now();
     let sim = Simulation::new(World::builtin("small").unwrap(), SimConfig::default(), 1).unwrap();
-    // a domain of this process's own (ports 7400 + 250·domain: domains up to 232)
-    let discovery = Discovery {
-        domain_id: 10 + (std::process::id() % 80) as u16,
-        localhost_only: true,
-    };
+    let discovery = loopback_discovery(0);
     let mut node_config = DroneNodeConfig::default();
     node_config.lidar.discovery = discovery;
     node_config.lidar.map_update_interval_s = 0.5;

@@ -4,9 +4,8 @@
 //! processed; the file, read back with the `mcap` crate, must hold every processed scan with
 //! its pose and transform, and the map and path at the end. Discovery is unicast on
 //! `127.0.0.1` only, on a domain of this process's own: nothing leaves the machine.
-#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
-use slamkit_ros2::dds::Discovery;
+use crate::loopback_discovery;
 use slamkit_ros2::{run_drone_sim_node, run_lidar_node, DroneSimNodeConfig, LidarNodeConfig};
 use slamkit_sim::{SimConfig, Simulation, World};
 use slamkit_slam::{LidarMethod, LidarSlam, LidarSlamConfig};
@@ -24,10 +23,7 @@ fn the_lidar_node_records_what_it_processed() {
     let sim = Simulation::new(World::builtin("small").unwrap(), SimConfig::default(), 2).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("node.mcap");
-    let discovery = Discovery {
-        domain_id: 90 + (std::process::id() % 10) as u16,
-        localhost_only: true,
-    };
+    let discovery = loopback_discovery(1);
     let config = LidarNodeConfig {
         discovery,
         odom_topic: None,

@@ -10,14 +10,14 @@
 //! moved; `/map` must come as an occupancy grid with free and occupied cells; and the node
 //! stops the robot when it stops. Both sides find each other by unicast on `127.0.0.1` only
 //! (`ROS_LOCALHOST_ONLY`), on a domain of their own.
-#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+use crate::loopback_discovery;
 use nalgebra::{Isometry2, Point2};
 use ros2_client::dds::rustdds::{DataWriterStatus, QosPolicies, StatusEvented};
 use ros2_client::{Context, NodeName, NodeOptions};
 use slamkit_core::observation::{Observation, RgbdFrame};
 use slamkit_core::Pose3;
-use slamkit_ros2::dds::{latched_qos, reliable_qos, topic, Discovery};
+use slamkit_ros2::dds::{latched_qos, reliable_qos, topic};
 use slamkit_ros2::msgs::{self, Header, Time};
 use slamkit_ros2::{run_nav_node, run_sim_node, NavNodeConfig, SimNodeConfig};
 use slamkit_sim::{GroundRobot, World};
@@ -44,10 +44,7 @@ fn the_nav_node_drives_the_simulated_robot_over_loopback() {
     // the map frame is the base frame at the start
     let start: Isometry2<f64> = robot.truth();
     let goal = start.inverse() * goal_world;
-    let discovery = Discovery {
-        domain_id: 100 + (std::process::id() % 60) as u16,
-        localhost_only: true,
-    };
+    let discovery = loopback_discovery(2);
     let mut config = NavNodeConfig::default();
     config.camera.discovery = discovery;
     config.camera.frame_queue = 1000;
@@ -285,10 +282,7 @@ fn the_simulated_robot_publishes_its_camera_and_drives_by_cmd_vel() {
     let world = World::builtin("office").unwrap();
     let mut robot = GroundRobot::new(world, &loop_config.sim, 1).unwrap();
     let start = robot.truth();
-    let discovery = Discovery {
-        domain_id: 160 + (std::process::id() % 60) as u16,
-        localhost_only: true,
-    };
+    let discovery = loopback_discovery(3);
     let config = SimNodeConfig {
         discovery,
         duration_s: Some(2.0),

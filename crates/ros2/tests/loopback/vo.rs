@@ -4,7 +4,7 @@
 //! plain RustDDS writer in this test into the node (colour raw, depth as `image_transport`'s
 //! `compressedDepth` PNG), with a RealSense-like `/tf_static` (`camera_link → <optical
 //! frame>`). Both sides discover each other by unicast on
-//! `127.0.0.1` only (`ROS_LOCALHOST_ONLY`, [`Discovery`]; loopback carries no multicast), on a
+//! `127.0.0.1` only (`ROS_LOCALHOST_ONLY`, [`crate::loopback_discovery`]; loopback carries no multicast), on a
 //! domain of their own, so nothing leaves the machine and concurrent runs do not meet.
 //!
 //! The poses received on `/pose` must be the trajectory `slamkit vo BAG --profile kinect-v1`
@@ -13,15 +13,15 @@
 //! drops (best effort) are counted; the reference then runs on the frames that came. The node
 //! records what it processed (`--record`, issue 23): read back, the file holds every frame's
 //! image, every published pose and transform, and the final path.
-#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+use crate::loopback_discovery;
 use ros2_client::dds::rustdds::{DataWriterStatus, QosPolicies, StatusEvented};
 use ros2_client::{Context, NodeName, NodeOptions};
 use slamkit_core::{Pose3, Trajectory};
 use slamkit_io::bag::messages::{is_type, CameraInfoMsg, ImageMsg, RosMessage};
 use slamkit_io::bag::RgbdTopics;
 use slamkit_io::{Dataset, DatasetFormat};
-use slamkit_ros2::dds::{reliable_qos, topic, Discovery};
+use slamkit_ros2::dds::{reliable_qos, topic};
 use slamkit_ros2::msgs::{self, Header, Time};
 use slamkit_ros2::vo_node::optical_mounting;
 use slamkit_ros2::{run_vo_node, VoNodeRequest};
@@ -171,11 +171,7 @@ fn the_camera_node_on_loopback_gives_the_bag_runs_trajectory() {
     let recording = out.path().join("node.mcap");
     let (images, info) = read_bag(&path);
     let optical = info.header.frame_id.clone();
-    // a domain of this process's own (ports 7400 + 250·domain: domains up to 232)
-    let discovery = Discovery {
-        domain_id: 100 + (std::process::id() % 120) as u16,
-        localhost_only: true,
-    };
+    let discovery = loopback_discovery(4);
     let request = VoNodeRequest {
         rgb_topic: Some(RGB.into()),
         depth_topic: Some(DEPTH_PNG.into()),

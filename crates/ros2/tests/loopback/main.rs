@@ -1,0 +1,33 @@
+//! slamkit's ROS 2 nodes on loopback: each module starts a node and its peers (plain RustDDS
+//! writers and readers, or slamkit's simulator nodes) in this process, on `127.0.0.1` only.
+//!
+//! One test binary, not one per node: each binary instantiated RustDDS's and ros2-client's
+//! generic code anew (the four took about 230 s of one core to build in CI, the largest two
+//! 107 and 72; docs/experiments/ci-time.md), and `cargo test` runs binaries one after another.
+//! Run one module's tests with a filter, e.g. `cargo test --release -p slamkit-ros2 --test
+//! loopback vo::`.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+mod drone;
+mod lidar_record;
+mod nav;
+mod vo;
+
+use slamkit_ros2::dds::Discovery;
+
+/// The DDS domains one run of this binary may use: [`DOMAINS_PER_RUN`] consecutive ones.
+const DOMAINS_PER_RUN: u16 = 5;
+
+/// Unicast discovery on `127.0.0.1` on a domain of this test's own: `slot` (0 to
+/// [`DOMAINS_PER_RUN`] − 1) names the test within this process, which runs its tests at the
+/// same time, and the process id picks the block of domains, so concurrent runs of the binary
+/// rarely meet (and a meeting costs a retry, not a wrong result: every peer checks the
+/// topics' types). RTPS puts domain d's ports at 7400 + 250·d, so domains go up to 232.
+fn loopback_discovery(slot: u16) -> Discovery {
+    assert!(slot < DOMAINS_PER_RUN);
+    let blocks = 220 / DOMAINS_PER_RUN;
+    Discovery {
+        domain_id: 10 + (std::process::id() % u32::from(blocks)) as u16 * DOMAINS_PER_RUN + slot,
+        localhost_only: true,
+    }
+}
