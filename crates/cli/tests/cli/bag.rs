@@ -148,7 +148,13 @@ fn same_trajectory_as_carmen(name: &str, relations: usize) {
     assert_eq!(report["metrics"]["relations"]["count"], relations);
 }
 
+/// Intel's two runs are one of the cli binary's longest tests. Its input is checked equal at
+/// the reader (`slamkit-io`'s `ros1_bags`: every scan and odometry against the CARMEN log
+/// within the text's rounding) and ACES runs this same path end to end, so CI does not repeat
+/// it (it passed at c3bced9, 2026-11-27, in 137 s at load 7: `cargo test --release -p slamkit
+/// --test cli bag:: -- --ignored`).
 #[test]
+#[ignore = "Intel's input is checked at the reader and ACES runs the path; see the doc comment"]
 fn intel_bag_run_equals_carmen_run() {
     same_trajectory_as_carmen("intel", 2984);
 }
