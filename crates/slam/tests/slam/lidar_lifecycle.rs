@@ -5,10 +5,10 @@
 //! mapping run (issue: localisation within 1.2×, the continued map's whole trajectory within
 //! 1.3×). Speed is measured by `scripts/bench_lifecycle.sh`, not here.
 
-use crate::benchmark_log::{log, Log};
+use crate::benchmark_log::{log, uninterrupted, Log};
 use slamkit_core::{LaserScan, Pose2, Trajectory};
 use slamkit_slam::lidar::LidarMap;
-use slamkit_slam::{LidarSlam, LidarSlamConfig, Session};
+use slamkit_slam::{LidarSlam, LidarSlamConfig};
 use std::path::Path;
 
 fn run(mut session: LidarSlam, scans: &[LaserScan]) -> LidarSlam {
@@ -24,35 +24,32 @@ fn error(log: &Log, trajectory: &Trajectory) -> f64 {
         .trans_mean
 }
 
-fn lifecycle(test: &str, name: &str, file: &str) {
-    let Some(log) = log(test, name, file) else {
+fn lifecycle(test: &str, name: &str) {
+    let Some(mapping) = uninterrupted(test, name) else {
         return;
     };
+    let log = &mapping.log;
     let dir = tempfile::tempdir().unwrap();
     let config = LidarSlamConfig::default();
 
-    // one uninterrupted mapping run, saved
-    let mapping = run(
-        LidarSlam::new(config.clone(), Pose2::identity()).unwrap(),
-        &log.scans,
-    );
-    let mapped = error(&log, &mapping.trajectory());
+    // one uninterrupted mapping run, saved (shared with the other tests of its log)
+    let mapped = error(log, &mapping.trajectory);
     let full = dir.path().join("full.skmap");
-    mapping.save(&full).unwrap();
-    let bytes = std::fs::metadata(&full).unwrap().len();
+    std::fs::write(&full, &mapping.file).unwrap();
+    let bytes = mapping.file.len();
     assert!(bytes < 3_000_000, "{name}: map of {bytes} bytes");
 
     // round trip: the map another run loads is the one this run saved, and it saves and
     // loads again to the same bytes and the same map
     let (loaded, header) = LidarMap::load(&full).unwrap();
-    assert_eq!(loaded.keyframes.len(), mapping.map().keyframes.len());
+    assert_eq!(loaded.keyframes.len(), mapping.map.keyframes.len());
     // edges as (x, y, θ): the file stores the angle, so a rotation whose complex number
     // drifted off unit length in memory is read back unit
     let xyt = |e: &slamkit_lidar::pose_graph::Edge| {
         let p = e.from_from_to;
         (e.from, e.to, p.translation.vector, p.rotation.angle())
     };
-    let saved: Vec<_> = mapping.map().edges.iter().map(xyt).collect();
+    let saved: Vec<_> = mapping.map.edges.iter().map(xyt).collect();
     let read: Vec<_> = loaded.edges.iter().map(xyt).collect();
     assert_eq!(read.len(), saved.len());
     for (a, b) in read.iter().zip(&saved) {
@@ -62,7 +59,7 @@ fn lifecycle(test: &str, name: &str, file: &str) {
     }
     let again = dir.path().join("again.skmap");
     loaded.to_file(header).unwrap().save(&again).unwrap();
-    assert!(std::fs::read(&again).unwrap() == std::fs::read(&full).unwrap());
+    assert!(std::fs::read(&again).unwrap() == mapping.file);
     assert!(LidarMap::load(&again).unwrap().0 == loaded);
 
     // localisation in the saved map, start pose unknown
@@ -75,20 +72,15 @@ fn lifecycle(test: &str, name: &str, file: &str) {
         stats.first_fix_scan.is_some(),
         "{name}: never found: {stats:?}"
     );
-    let localised_error = error(&log, &localised.trajectory());
-    assert_eq!(
-        localised.map().keyframes.len(),
-        mapping.map().keyframes.len()
-    );
+    let localised_error = error(log, &localised.trajectory());
+    assert_eq!(localised.map().keyframes.len(), mapping.map.keyframes.len());
 
-    // the first half mapped and saved, the second continued from the file
-    let half = log.scans.len() / 2;
-    let first = run(
-        LidarSlam::new(config.clone(), Pose2::identity()).unwrap(),
-        &log.scans[..half],
-    );
+    // the first half mapped and saved (the uninterrupted run's state there), the second
+    // continued from the file
+    let first = &mapping.half;
+    let half = first.scans;
     let part = dir.path().join("half.skmap");
-    first.save(&part).unwrap();
+    std::fs::write(&part, &first.file).unwrap();
     let (half_map, _) = LidarMap::load(&part).unwrap();
     let continued = run(
         LidarSlam::resume(config, half_map).unwrap(),
@@ -100,8 +92,8 @@ fn lifecycle(test: &str, name: &str, file: &str) {
         log.scans.len(),
         "{name}: every scan in the map"
     );
-    assert!(whole.keyframes.len() > first.map().keyframes.len());
-    let continued_error = error(&log, &whole.trajectory());
+    assert!(whole.keyframes.len() > first.keyframes);
+    let continued_error = error(log, &whole.trajectory());
 
     eprintln!(
         "{name}: relations error mapping {mapped:.4} m, localisation {localised_error:.4} m \
@@ -120,29 +112,17 @@ fn lifecycle(test: &str, name: &str, file: &str) {
 
 #[test]
 fn intel_map_localise_continue() {
-    lifecycle(
-        "intel_map_localise_continue",
-        "intel",
-        "intel.fromrosbag.clf.gz",
-    );
+    lifecycle("intel_map_localise_continue", "intel");
 }
 
 #[test]
 fn aces_map_localise_continue() {
-    lifecycle(
-        "aces_map_localise_continue",
-        "aces",
-        "aces.fromrosbag.clf.gz",
-    );
+    lifecycle("aces_map_localise_continue", "aces");
 }
 
 #[test]
 fn mit_csail_map_localise_continue() {
-    lifecycle(
-        "mit_csail_map_localise_continue",
-        "mit-csail",
-        "mit-csail.clf",
-    );
+    lifecycle("mit_csail_map_localise_continue", "mit-csail");
 }
 
 #[test]

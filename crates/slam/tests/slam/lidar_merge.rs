@@ -17,11 +17,12 @@
 //! error against the uninterrupted run (docs/experiments/map-merge.md).
 //!
 //! CI time: Intel's parts are merged once, with the part of ACES among them, rather than once
-//! alone and again with it (the second merge searched every Intel pair again), ACES is mapped
-//! once for both tests that use it, and each log's first part is saved from the uninterrupted
-//! run at the first cut rather than mapped again (docs/experiments/ci-time.md).
+//! alone and again with it (the second merge searched every Intel pair again), ACES's parts
+//! are mapped once for both tests that use it, and the uninterrupted run is the one
+//! `lidar_lifecycle` uses too, with each log's first part its map file at the first cut
+//! ([`crate::benchmark_log::uninterrupted`]; docs/experiments/ci-time.md).
 
-use crate::benchmark_log::{log, Log};
+use crate::benchmark_log::{uninterrupted, Log};
 use slamkit_core::pose::pose3_to_pose2;
 use slamkit_core::{LaserScan, Pose2, Trajectory};
 use slamkit_eval::relations::GroundTruthRelation;
@@ -68,61 +69,64 @@ fn differ(a: &Pose2, b: &Pose2) -> (f64, f64) {
 /// Saves and reloads the map of a part mapped by `session`; returns it with the part's
 /// relations error alone.
 fn part(session: &LidarSlam, log: &Log, path: &Path) -> (LidarMap, f64) {
-    let error = error(&log.relations, &session.trajectory());
     session.save(path).unwrap();
-    (LidarMap::load(path).unwrap().0, error)
+    (
+        LidarMap::load(path).unwrap().0,
+        error(&log.relations, &session.trajectory()),
+    )
 }
 
 /// A log mapped whole and in three parts.
 struct Mapped {
-    log: Log,
+    log: &'static Log,
     /// The uninterrupted run's trajectory.
-    full: Trajectory,
+    full: &'static Trajectory,
     /// The parts' maps, saved and reloaded.
     maps: Vec<LidarMap>,
     /// Each part's relations error alone \[m\].
     errors: Vec<f64>,
 }
 
-fn mapped(test: &str, name: &str, file: &str) -> Option<Mapped> {
+fn mapped(test: &str, name: &str) -> Option<Mapped> {
     let start = Instant::now();
-    let log = log(test, name, file)?;
+    let whole = uninterrupted(test, name)?;
+    let log = &whole.log;
     let dir = tempfile::tempdir().unwrap();
-    let third = log.scans.len() / 3;
-    let cuts = [0, third, 2 * third, log.scans.len()];
     // The uninterrupted run after the first cut is the first part mapped alone (the same scans
-    // from the same start): that part is saved from it rather than mapped a second time.
-    let mut whole = map(&log.scans[..third]);
-    let (first, first_error) = part(&whole, &log, &dir.path().join("part0.skmap"));
-    for scan in &log.scans[third..] {
-        whole.push_scan(scan.clone());
-    }
-    let full = whole.trajectory();
-    let (mut maps, mut errors) = (vec![first], vec![first_error]);
-    for (k, cut) in cuts.windows(2).enumerate().skip(1) {
+    // from the same start): that part is its map file there rather than mapped a second time.
+    let first = &whole.third;
+    let path = dir.path().join("part0.skmap");
+    std::fs::write(&path, &first.file).unwrap();
+    let mut maps = vec![LidarMap::load(&path).unwrap().0];
+    let mut errors = vec![error(&log.relations, &first.trajectory)];
+    let cuts = [first.scans, 2 * first.scans, log.scans.len()];
+    for (k, cut) in cuts.windows(2).enumerate() {
         let session = map(&log.scans[cut[0]..cut[1]]);
-        let (m, e) = part(&session, &log, &dir.path().join(format!("part{k}.skmap")));
+        let (m, e) = part(
+            &session,
+            log,
+            &dir.path().join(format!("part{}.skmap", k + 1)),
+        );
         maps.push(m);
         errors.push(e);
     }
     eprintln!(
-        "{name}: mapped whole and in parts in {:.1} s",
+        "{name}: the parts after the first mapped in {:.1} s",
         start.elapsed().as_secs_f64()
     );
     Some(Mapped {
         log,
-        full,
+        full: &whole.trajectory,
         maps,
         errors,
     })
 }
 
-/// ACES mapped once for the two tests that use it (its parts merged, and its first part put
-/// among Intel's).
+/// ACES's parts mapped once for the two tests that use it (its parts merged, and its first
+/// part put among Intel's).
 fn aces(test: &str) -> Option<&'static Mapped> {
     static ACES: OnceLock<Option<Mapped>> = OnceLock::new();
-    ACES.get_or_init(|| mapped(test, "aces", "aces.fromrosbag.clf.gz"))
-        .as_ref()
+    ACES.get_or_init(|| mapped(test, "aces")).as_ref()
 }
 
 /// What a merge of a log's three parts reached.
@@ -146,7 +150,7 @@ fn check_merge(name: &str, mapped: &Mapped, foreign: Option<&LidarMap>) -> Score
     let parts: Vec<usize> = (0..maps.len())
         .filter(|&i| foreign.is_none() || i != 1)
         .collect();
-    let full = &mapped.full;
+    let full = mapped.full;
     let start = Instant::now();
     let outcome = merge_maps(&maps, &MergeConfig::default()).unwrap();
     let seconds = start.elapsed().as_secs_f64();
@@ -278,7 +282,7 @@ fn wrong_closures(
 #[test]
 fn intel_in_three_parts_merges_and_a_part_of_aces_is_left_out() {
     let test = "intel_in_three_parts_merges_and_a_part_of_aces_is_left_out";
-    let Some(intel) = mapped(test, "intel", "intel.fromrosbag.clf.gz") else {
+    let Some(intel) = mapped(test, "intel") else {
         return;
     };
     let aces = aces(test).unwrap();
@@ -304,7 +308,6 @@ fn mit_csail_in_three_parts_accepts_no_wrong_closure() {
     if let Some(csail) = mapped(
         "mit_csail_in_three_parts_accepts_no_wrong_closure",
         "mit-csail",
-        "mit-csail.clf",
     ) {
         check_merge("mit-csail", &csail, None);
     }
