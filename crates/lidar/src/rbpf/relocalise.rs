@@ -60,9 +60,11 @@ pub struct RelocalisationConfig {
     /// `agree_m` and `agree_rad`, `confirmations` times running), every particle of the lineage
     /// is moved by it. The weights cannot make that choice fairly: both the moved and the
     /// unmoved particles are scored against a map whose ground around the robot is the recent,
-    /// drifted pass, which the unmoved pose explains. Not the default: on ACES at 10 particles
-    /// it met 0.060 m at 9 seeds of 10 (main's filter 5), but one seed confirmed a false
-    /// closure, and Intel and MIT CSAIL lost 0.005-0.02 m (docs/experiments/pf-seeds.md).
+    /// drifted pass, which the unmoved pose explains. A match the old pass also explains at the
+    /// prediction does not count (`ambiguous`: a corridor slide). Not the default: at 10
+    /// particles, seeds 1-10, it met MIT CSAIL's 0.049 m at every seed and ACES's 0.060 m at 9
+    /// (main's filter 9 and 5), but ACES seed 2 closes its first loop late, 0.087 m
+    /// (docs/experiments/pf-seeds.md).
     pub confirmations: usize,
     /// Two matches agree when the corrections they ask for move the prediction to poses
     /// within this distance \[m\] ...
