@@ -22,9 +22,9 @@
 //! particles. Those weights favour the unmoved particles (both are scored against a map whose
 //! ground around the robot is the recent, drifted pass), so which seeds close a loop is left to
 //! chance; with `relocalisation.confirmations` set, whole lineages move instead once
-//! consecutive searches agree on the correction (not the default: measured in
-//! docs/experiments/pf-seeds.md, it closes more seeds' loops but confirmed a false closure on
-//! one). The output is
+//! consecutive searches agree on the correction and the prediction does not match the old
+//! pass as well (not the default: measured in docs/experiments/pf-seeds.md, it closes more
+//! seeds' loops but still misses one ACES seed's first closure). The output is
 //! the trajectory of the particle with the highest log weight accumulated over its whole
 //! ancestry (GMapping's `weightSum`), read back through that ancestry; scans between two updates
 //! are placed by odometry, with the correction at the next update spread over them linearly.
@@ -475,7 +475,7 @@ impl Rbpf {
                 continue;
             }
             let predicted = particle.world_from_base * increment;
-            let Some(matched) = relocalise(&particle.node, &predicted, &source, c) else {
+            let Some(matched) = relocalise(&particle.node, &predicted, &source, c, None) else {
                 continue;
             };
             self.stats.relocalisation_matches += 1;
@@ -492,8 +492,10 @@ impl Rbpf {
     /// the lineage is moved by it, which keeps their spread. The decision is the searches'
     /// agreement, not the weights (see [`RelocalisationConfig::confirmations`]), so a closure
     /// found is taken whatever the seed; agreement over several updates, about a metre of
-    /// travel, rejects single false matches of a similar-looking place (not repeated ones: a
-    /// corridor can repeat its false match, docs/experiments/pf-seeds.md).
+    /// travel, rejects single false matches of a similar-looking place. A corridor repeats its
+    /// false match, so a match also counts only when the prediction, refined by the same ICP,
+    /// is not itself an accepted match elsewhere (`ambiguous` in [`relocalise`](mod@relocalise):
+    /// then the old pass explains the scan where the lineage already is).
     fn relocalise_lineages(&mut self, points: &[Point2<f64>], increment: &Pose2) {
         let c = &self.config.relocalisation;
         let now = self.stats.updates;
@@ -527,7 +529,9 @@ impl Rbpf {
         for r in searchers {
             let searcher = &self.particles[r];
             let predicted = searcher.world_from_base * increment;
-            let Some(matched) = relocalise(&searcher.node, &predicted, &source, c) else {
+            let unambiguous = Some((c.agree_m, c.agree_rad));
+            let Some(matched) = relocalise(&searcher.node, &predicted, &source, c, unambiguous)
+            else {
                 continue;
             };
             self.stats.relocalisation_matches += 1;

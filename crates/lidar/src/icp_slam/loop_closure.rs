@@ -283,6 +283,11 @@ impl SearchSource {
         let coarse = voxel_downsample(&points, config.search_voxel_m);
         Self { points, coarse }
     }
+
+    /// The points within range (base frame), as ICP aligns them.
+    pub fn points(&self) -> &[Point2<f64>] {
+        &self.points
+    }
 }
 
 /// Matches `source` against `submap` (world frame) within `window` \[m\] of `pose` (the

@@ -17,19 +17,21 @@
 //! its reach of the old map; the weight is then computed as usual, so a wrong jump is paid for
 //! by the scan likelihood like any other bad pose. (With `confirmations` set, one particle
 //! searches per lineage and the lineage moves once that many matches in a row ask for the same
-//! correction, [`RelocalisationConfig::confirmations`].) This is the scan-matching
+//! correction, [`RelocalisationConfig::confirmations`]; a match counts only when the old pass
+//! does not explain the scan at the prediction too, see `ambiguous`.) This is the scan-matching
 //! "relocalisation" used when a Rao-Blackwellised filter meets old ground with a drifted
 //! lineage; it does not correct the particle's past poses, only its present one, which is
 //! what the relations metric compares between two visits of the same place (Kümmerle et al.,
 //! Autonomous Robots 27(4), 2009).
 
-use super::Node;
+use super::{agree, Node};
 use crate::cloud::{estimate_normals, voxel_downsample};
 use crate::error::check_fields;
+use crate::icp::align;
 use crate::icp_slam::loop_closure::{
     candidate_reach, match_submap, search_window, LoopClosureConfig, SearchSource,
 };
-use crate::nn::NearestNeighbours;
+use crate::nn::{GridIndex, NearestNeighbours};
 use crate::point_map::{index_keyframes, Keyframe};
 use crate::LidarError;
 use nalgebra::Point2;
@@ -58,9 +60,11 @@ pub struct RelocalisationConfig {
     /// `agree_m` and `agree_rad`, `confirmations` times running), every particle of the lineage
     /// is moved by it. The weights cannot make that choice fairly: both the moved and the
     /// unmoved particles are scored against a map whose ground around the robot is the recent,
-    /// drifted pass, which the unmoved pose explains. Not the default: on ACES at 10 particles
-    /// it met 0.060 m at 9 seeds of 10 (main's filter 5), but one seed confirmed a false
-    /// closure, and Intel and MIT CSAIL lost 0.005-0.02 m (docs/experiments/pf-seeds.md).
+    /// drifted pass, which the unmoved pose explains. A match the old pass also explains at the
+    /// prediction does not count (`ambiguous`: a corridor slide). Not the default: at 10
+    /// particles, seeds 1-10, it met MIT CSAIL's 0.049 m at every seed and ACES's 0.060 m at 9
+    /// (main's filter 9 and 5), but ACES seed 2 closes its first loop late, 0.087 m
+    /// (docs/experiments/pf-seeds.md).
     pub confirmations: usize,
     /// Two matches agree when the corrections they ask for move the prediction to poses
     /// within this distance \[m\] ...
@@ -186,6 +190,7 @@ pub(super) fn relocalise(
     predicted: &Pose2,
     source: &SearchSource,
     config: &RelocalisationConfig,
+    unambiguous_within: Option<(f64, f64)>,
 ) -> Option<Pose2> {
     let search = &config.search;
     // The particle's trajectory, newest first, with the path length from each node to now.
@@ -240,8 +245,48 @@ pub(super) fn relocalise(
             search,
             search.min_goodness,
         )?;
+        let rejected = unambiguous_within.is_some_and(|(m, rad)| {
+            ambiguous(
+                source,
+                &submap,
+                predicted,
+                &fine.target_from_source,
+                search,
+                m,
+                rad,
+            )
+        });
+        if rejected {
+            return None;
+        }
         Some(fine.target_from_source)
     })
+}
+
+/// True when the old pass explains the scan at the prediction too: `predicted`, refined by the
+/// search's ICP against `submap`, is itself an accepted match (goodness at least the search's
+/// `min_goodness`) and lies farther than `agree_m` / `agree_rad` from `matched`. The submap
+/// then holds two explanations of the scan, and the search's choice between them is not
+/// evidence that the lineage is off: along a corridor whose walls repeat, the window's best
+/// correlation slides by metres (ACES seed 2 took three such corrections of 2-4.5 m along one
+/// corridor, every one with the prediction already matching 72-92 % of the scan's points
+/// within 0.1 m, and a fourth of 5.2 m after them: 0.047 -> 0.446 m, docs/experiments/pf-seeds.md).
+/// A drifted lineage's prediction does not match its old pass (the true closures of that run
+/// and of seed 6: 0-33 % within 0.1 m), and a small true correction refines to the match
+/// itself.
+fn ambiguous(
+    source: &SearchSource,
+    submap: &GridIndex,
+    predicted: &Pose2,
+    matched: &Pose2,
+    search: &LoopClosureConfig,
+    agree_m: f64,
+    agree_rad: f64,
+) -> bool {
+    align(source.points(), submap, predicted, &search.icp)
+        .ok()
+        .filter(|local| local.goodness >= search.min_goodness)
+        .is_some_and(|local| !agree(&local.target_from_source, matched, agree_m, agree_rad))
 }
 
 /// The nearest pose of each visit of the place: `near` holds `(depth, window, distance)` of
@@ -325,7 +370,11 @@ mod tests {
             &config.search,
         );
         let predicted = Pose2::new(Vector2::new(-2.7, -0.35), 0.17);
-        let found = relocalise(&newest, &predicted, &source, &config).expect("a match");
+        let found = relocalise(&newest, &predicted, &source, &config, None).expect("a match");
+        // The drifted prediction does not match the old pass: the match is not ambiguous.
+        let unambiguous = Some((config.agree_m, config.agree_rad));
+        let checked = relocalise(&newest, &predicted, &source, &config, unambiguous);
+        assert_eq!(checked, Some(found));
         let error = actual.inverse() * found;
         assert!(
             error.translation.vector.norm() < 0.03 && error.rotation.angle().abs() < 0.01,
@@ -336,6 +385,82 @@ mod tests {
             min_separation_updates: 40,
             ..config
         };
-        assert!(relocalise(&newest, &predicted, &source, &strict).is_none());
+        assert!(relocalise(&newest, &predicted, &source, &strict, None).is_none());
+    }
+
+    /// The scans' points at their poses as one submap (world frame), and the source of a scan.
+    fn submap_of(
+        world: &SegmentWorld,
+        poses: &[Pose2],
+        config: &RelocalisationConfig,
+        range_m: f64,
+    ) -> GridIndex {
+        let keyframes: Vec<Keyframe> = poses
+            .iter()
+            .map(|pose| {
+                let scan = world.scan(pose, 361, std::f64::consts::PI, range_m);
+                Keyframe {
+                    world_from_base: *pose,
+                    ..config.keep(&scan_points(&scan, 0.1, range_m - 0.01))
+                }
+            })
+            .collect();
+        index_keyframes(&keyframes, config.search.correlative.resolution_m)
+    }
+
+    fn source_at(
+        world: &SegmentWorld,
+        pose: &Pose2,
+        config: &RelocalisationConfig,
+        range_m: f64,
+    ) -> SearchSource {
+        let scan = world.scan(pose, 361, std::f64::consts::PI, range_m);
+        SearchSource::new(&scan_points(&scan, 0.1, range_m - 0.01), &config.search)
+    }
+
+    /// In a corridor whose pillars repeat every 2 m, a match one period along the corridor
+    /// from a correct prediction is ambiguous; in the asymmetric room, neither a prediction
+    /// 0.9 m off (a drifted lineage) nor one 5 cm off (a small correction) is.
+    #[test]
+    fn a_repeating_corridor_makes_a_match_ambiguous_the_room_does_not() {
+        let config = RelocalisationConfig::default();
+        let (m, rad) = (config.agree_m, config.agree_rad);
+        let mut corridor = SegmentWorld {
+            segments: vec![
+                (Point2::new(-30.0, -1.0), Point2::new(30.0, -1.0)),
+                (Point2::new(-30.0, 1.0), Point2::new(30.0, 1.0)),
+            ],
+        };
+        for k in -15..15 {
+            let x = 2.0 * f64::from(k);
+            corridor.segments.extend(
+                SegmentWorld::polygon(&[(x, -1.0), (x + 0.3, -1.0), (x + 0.3, -0.8), (x, -0.8)])
+                    .segments,
+            );
+        }
+        let along: Vec<Pose2> = (0..25)
+            .map(|i| Pose2::new(Vector2::new(-6.0 + 0.5 * f64::from(i), 0.0), 0.0))
+            .collect();
+        let submap = submap_of(&corridor, &along, &config, 8.0);
+        let truth = Pose2::new(Vector2::new(0.3, 0.1), 0.0);
+        let source = source_at(&corridor, &truth, &config, 8.0);
+        let slid = Pose2::new(Vector2::new(2.3, 0.1), 0.0);
+        let search = &config.search;
+        assert!(ambiguous(&source, &submap, &truth, &slid, search, m, rad));
+        assert!(!ambiguous(&source, &submap, &truth, &truth, search, m, rad));
+
+        let room = SegmentWorld::room();
+        let poses: Vec<Pose2> = (0..20)
+            .map(|i| Pose2::new(Vector2::new(-3.5 + 0.3 * f64::from(i), -1.0), 0.1))
+            .collect();
+        let submap = submap_of(&room, &poses, &config, 30.0);
+        let actual = Pose2::new(Vector2::new(-3.4, -0.9), 0.12);
+        let source = source_at(&room, &actual, &config, 30.0);
+        let drifted = Pose2::new(Vector2::new(-2.7, -0.35), 0.17);
+        assert!(!ambiguous(
+            &source, &submap, &drifted, &actual, search, m, rad
+        ));
+        let near = Pose2::new(Vector2::new(-3.35, -0.9), 0.11);
+        assert!(!ambiguous(&source, &submap, &near, &actual, search, m, rad));
     }
 }
