@@ -406,6 +406,7 @@ mod tests {
         assert_eq!(stereo.motion.noise.disparity_sigma_px, 1.0);
         assert_eq!(stereo.motion.noise.depth_sigma_base_m, 0.0);
         assert_eq!(stereo.orb.n_levels, 1);
+        assert_eq!(stereo.orb.cell_px, 30);
     }
 
     #[test]

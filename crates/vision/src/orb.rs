@@ -40,6 +40,13 @@ pub struct OrbConfig {
     pub edge_threshold: usize,
     /// FAST intensity threshold \[grey levels\].
     pub fast_threshold: u8,
+    /// Side of the square cells a level's keypoints are spread over \[px at each level\]; 0
+    /// keeps OpenCV's ranking over the whole image. With cells, the best of every cell is kept
+    /// before the second best of any, a cell without corners leaving its share to the others.
+    /// The global ranking gathers the budget on the most contrasted texture (foliage, far
+    /// façades on KITTI) and leaves the weak but near ground with few keypoints; ORB-SLAM
+    /// detects in 30-px cells for the same reason (Mur-Artal & Tardós, T-RO 2017, §III-A).
+    pub cell_px: usize,
 }
 
 impl Default for OrbConfig {
@@ -50,6 +57,7 @@ impl Default for OrbConfig {
             n_levels: 8,
             edge_threshold: 31,
             fast_threshold: 20,
+            cell_px: 0,
         }
     }
 }
@@ -176,12 +184,27 @@ impl Orb {
             self.config.edge_threshold,
             true,
         );
-        retain_best(&mut kps, 2 * n, |k| f32::from(k.score));
+        let cell = self.config.cell_px;
+        if cell > 0 {
+            spread_over_cells(
+                &mut kps,
+                2 * n,
+                cell,
+                |k| (k.x, k.y),
+                |k| f32::from(k.score),
+            );
+        } else {
+            retain_best(&mut kps, 2 * n, |k| f32::from(k.score));
+        }
         let mut scored: Vec<(FastCorner, f32)> = kps
             .into_iter()
             .map(|k| (k, harris_response(img, k.x, k.y)))
             .collect();
-        retain_best(&mut scored, n, |s| s.1);
+        if cell > 0 {
+            spread_over_cells(&mut scored, n, cell, |s| (s.0.x, s.0.y), |s| s.1);
+        } else {
+            retain_best(&mut scored, n, |s| s.1);
+        }
         scored
     }
 
@@ -267,6 +290,56 @@ fn retain_best<T>(items: &mut Vec<T>, n: usize, key: impl Fn(&T) -> f32) {
         }
         items.truncate(n);
     }
+}
+
+/// Keeps `n` of `items` spread over square cells of side `cell_px` (> 0): ranked by `key`
+/// within each cell, the items of rank 0 of every cell come first, then those of rank 1, and
+/// so on, each rank ordered by `key` (ties by the original order: deterministic). A cell with
+/// few corners gives its share to the others, so the budget is spent as with a global ranking
+/// when every cell is full.
+fn spread_over_cells<T>(
+    items: &mut Vec<T>,
+    n: usize,
+    cell_px: usize,
+    position: impl Fn(&T) -> (usize, usize),
+    key: impl Fn(&T) -> f32,
+) {
+    if items.len() <= n {
+        return;
+    }
+    let cell_of = |t: &T| {
+        let (x, y) = position(t);
+        (y / cell_px, x / cell_px)
+    };
+    let mut order: Vec<usize> = (0..items.len()).collect();
+    order.sort_by(|&a, &b| {
+        cell_of(&items[a])
+            .cmp(&cell_of(&items[b]))
+            .then(key(&items[b]).total_cmp(&key(&items[a])))
+            .then(a.cmp(&b))
+    });
+    let mut rank = vec![0usize; items.len()];
+    for pair in order.windows(2) {
+        if let [prev, next] = *pair {
+            if cell_of(&items[prev]) == cell_of(&items[next]) {
+                rank[next] = rank[prev] + 1;
+            }
+        }
+    }
+    order.sort_by(|&a, &b| {
+        rank[a]
+            .cmp(&rank[b])
+            .then(key(&items[b]).total_cmp(&key(&items[a])))
+            .then(a.cmp(&b))
+    });
+    order.truncate(n);
+    order.sort_unstable();
+    let mut keep = vec![false; items.len()];
+    for i in order {
+        keep[i] = true;
+    }
+    let mut flags = keep.into_iter();
+    items.retain(|_| flags.next().unwrap_or(false));
 }
 
 /// Harris corner response over the 7×7 block around (x, y), with OpenCV's Sobel and scale.
@@ -414,6 +487,58 @@ mod tests {
             assert_eq!(describe(&img, &pattern, 32, 32, angle), want, "{angle}");
             assert_eq!(describe_portable(&img, &pattern, 32, 32, angle), want);
         }
+    }
+
+    #[test]
+    fn cells_keep_the_best_of_every_cell_first() {
+        // (x, y, key): cell (0, 0) holds three strong items, cell (0, 1) one weak one
+        let mut items = vec![(1, 1, 9.0), (2, 2, 8.0), (12, 1, 1.0), (3, 3, 7.0)];
+        spread_over_cells(&mut items, 2, 10, |t| (t.0, t.1), |t| t.2);
+        assert_eq!(items, vec![(1, 1, 9.0), (12, 1, 1.0)]);
+        // a budget larger than the cells' first ranks is filled by the next ranks, by key
+        let mut items = vec![(1, 1, 9.0), (2, 2, 8.0), (12, 1, 1.0), (3, 3, 7.0)];
+        spread_over_cells(&mut items, 3, 10, |t| (t.0, t.1), |t| t.2);
+        assert_eq!(items, vec![(1, 1, 9.0), (2, 2, 8.0), (12, 1, 1.0)]);
+    }
+
+    #[test]
+    fn cells_spread_keypoints_to_weak_texture() {
+        // hashed noise at full contrast on the left half, at 0.6 of it on the right: the
+        // global ranking takes (nearly) all its keypoints on the left
+        let (w, h) = (320, 120);
+        let noise = crate::test_images::hashed(w, h);
+        let data: Vec<u8> = noise
+            .data()
+            .iter()
+            .enumerate()
+            .map(|(i, &v)| {
+                let gain = if i % w < w / 2 { 1.0 } else { 0.6 };
+                (128.0 + (f32::from(v) - 128.0) * gain) as u8
+            })
+            .collect();
+        let img = GrayImage::from_vec(w, h, data).unwrap();
+        let config = OrbConfig {
+            n_features: 60,
+            n_levels: 1,
+            ..OrbConfig::default()
+        };
+        let right_half =
+            |f: &OrbFeatures| f.keypoints.iter().filter(|k| k.x >= (w / 2) as f32).count();
+        let global = Orb::new(config.clone()).unwrap().detect_and_compute(&img);
+        let cells = Orb::new(OrbConfig {
+            cell_px: 30,
+            ..config
+        })
+        .unwrap()
+        .detect_and_compute(&img);
+        assert_eq!(global.keypoints.len(), 60);
+        assert_eq!(cells.keypoints.len(), 60);
+        assert!(
+            right_half(&cells) > right_half(&global) + 10,
+            "{} vs {}",
+            right_half(&cells),
+            right_half(&global)
+        );
     }
 
     #[test]
