@@ -37,6 +37,7 @@ pub mod bag;
 pub mod carmen;
 pub mod carmen_writer;
 pub mod dataset;
+pub mod degraded_log;
 pub mod drone_csv;
 pub mod error;
 pub mod euroc;
