@@ -60,8 +60,10 @@ fn the_newest_map_is_kept_an_older_or_broken_one_is_not_and_the_merger_is_asked_
         assert!(start.elapsed() < Duration::from_secs(10));
         std::thread::sleep(Duration::from_millis(20));
     }
+    // made once: a map file's header holds the second it was made in
+    let newer_map = map("newer");
     for (bytes, stamp) in [
-        (map("newer"), newer),
+        (newer_map.clone(), newer),
         (map("older"), older),
         (b"not a map".to_vec(), newest),
     ] {
@@ -70,7 +72,7 @@ fn the_newest_map_is_kept_an_older_or_broken_one_is_not_and_the_merger_is_asked_
     poll_until(&mut inbox, |r| r.maps == 3);
     let r = inbox.receipts();
     assert_eq!((r.kept, r.rejected, r.fetched), (1, 1, 0));
-    assert_eq!(std::fs::read(&path).unwrap(), map("newer"));
+    assert_eq!(std::fs::read(&path).unwrap(), newer_map);
     assert_eq!(inbox.newest(), Some(newer));
 
     // the merger's queryable comes in reach (the robot asks once), and a status names a

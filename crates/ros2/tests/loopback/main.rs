@@ -13,7 +13,9 @@ mod lidar_record;
 mod nav;
 mod vo;
 
+use ros2_client::dds::rustdds::DataWriterStatus;
 use slamkit_ros2::dds::Discovery;
+use std::time::{Duration, Instant};
 
 /// The DDS domains one run of this binary may use: [`DOMAINS_PER_RUN`] consecutive ones.
 const DOMAINS_PER_RUN: u16 = 5;
@@ -29,5 +31,22 @@ fn loopback_discovery(slot: u16) -> Discovery {
     Discovery {
         domain_id: 10 + (std::process::id() % u32::from(blocks)) as u16 * DOMAINS_PER_RUN + slot,
         localhost_only: true,
+    }
+}
+
+/// Waits until each writer (its status, polled by one closure each) has matched a reader:
+/// the node under test discovered over `127.0.0.1`. Fails after 10 s, naming which did not.
+fn wait_until_matched(statuses: &[&dyn Fn() -> Option<DataWriterStatus>]) {
+    let deadline = Instant::now() + Duration::from_secs(10);
+    let mut matched = vec![false; statuses.len()];
+    while matched.iter().any(|m| !m) {
+        assert!(
+            Instant::now() < deadline,
+            "the node was not discovered: {matched:?}"
+        );
+        for (m, status) in matched.iter_mut().zip(statuses) {
+            *m |= matches!(status(), Some(DataWriterStatus::PublicationMatched { .. }));
+        }
+        std::thread::sleep(Duration::from_millis(20));
     }
 }

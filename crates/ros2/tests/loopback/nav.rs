@@ -11,9 +11,9 @@
 //! stops the robot when it stops. Both sides find each other by unicast on `127.0.0.1` only
 //! (`ROS_LOCALHOST_ONLY`), on a domain of their own.
 
-use crate::loopback_discovery;
+use crate::{loopback_discovery, wait_until_matched};
 use nalgebra::{Isometry2, Point2};
-use ros2_client::dds::rustdds::{DataWriterStatus, QosPolicies, StatusEvented};
+use ros2_client::dds::rustdds::{QosPolicies, StatusEvented};
 use ros2_client::{Context, NodeName, NodeOptions};
 use slamkit_core::observation::{Observation, RgbdFrame};
 use slamkit_core::Pose3;
@@ -104,22 +104,13 @@ fn the_nav_node_drives_the_simulated_robot_over_loopback() {
         let mut map_r = subscriber
             .create_datareader_no_key_cdr::<msgs::OccupancyGrid>(&map_t, None)
             .unwrap();
-        let deadline = Instant::now() + Duration::from_secs(10);
-        let mut matched = [false; 5];
-        while matched.iter().any(|m| !m) {
-            assert!(Instant::now() < deadline, "not discovered: {matched:?}");
-            let statuses = [
-                rgb_w.try_recv_status(),
-                depth_w.try_recv_status(),
-                info_w.try_recv_status(),
-                tf_w.try_recv_status(),
-                goal_w.try_recv_status(),
-            ];
-            for (m, s) in matched.iter_mut().zip(statuses) {
-                *m |= matches!(s, Some(DataWriterStatus::PublicationMatched { .. }));
-            }
-            std::thread::sleep(Duration::from_millis(20));
-        }
+        wait_until_matched(&[
+            &|| rgb_w.try_recv_status(),
+            &|| depth_w.try_recv_status(),
+            &|| info_w.try_recv_status(),
+            &|| tf_w.try_recv_status(),
+            &|| goal_w.try_recv_status(),
+        ]);
         let discovered_s = started.elapsed().as_secs_f64();
         let header = |stamp, frame: &str| Header {
             stamp,

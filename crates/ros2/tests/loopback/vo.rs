@@ -14,8 +14,8 @@
 //! records what it processed (`--record`, issue 23): read back, the file holds every frame's
 //! image, every published pose and transform, and the final path.
 
-use crate::loopback_discovery;
-use ros2_client::dds::rustdds::{DataWriterStatus, QosPolicies, StatusEvented};
+use crate::{loopback_discovery, wait_until_matched};
+use ros2_client::dds::rustdds::{QosPolicies, StatusEvented};
 use ros2_client::{Context, NodeName, NodeOptions};
 use slamkit_core::{Pose3, Trajectory};
 use slamkit_io::bag::messages::{is_type, CameraInfoMsg, ImageMsg, RosMessage};
@@ -247,24 +247,12 @@ fn the_camera_node_on_loopback_gives_the_bag_runs_trajectory() {
             .create_datareader_no_key_cdr::<msgs::PoseWithCovarianceStamped>(&pose_t, None)
             .unwrap();
         // wait until the node's readers are matched (discovery over 127.0.0.1)
-        let deadline = Instant::now() + Duration::from_secs(10);
-        let mut matched = [false; 4];
-        while matched.iter().any(|m| !m) {
-            assert!(
-                Instant::now() < deadline,
-                "the node was not discovered: {matched:?}"
-            );
-            let statuses = [
-                rgb_w.try_recv_status(),
-                depth_w.try_recv_status(),
-                info_w.try_recv_status(),
-                tf_w.try_recv_status(),
-            ];
-            for (m, s) in matched.iter_mut().zip(statuses) {
-                *m |= matches!(s, Some(DataWriterStatus::PublicationMatched { .. }));
-            }
-            std::thread::sleep(Duration::from_millis(20));
-        }
+        wait_until_matched(&[
+            &|| rgb_w.try_recv_status(),
+            &|| depth_w.try_recv_status(),
+            &|| info_w.try_recv_status(),
+            &|| tf_w.try_recv_status(),
+        ]);
         let discovered_s = started.elapsed().as_secs_f64();
         let tf = msgs::TfMessage {
             transforms: vec![msgs::TransformStamped {
