@@ -13,7 +13,10 @@ mod lidar_record;
 mod nav;
 mod vo;
 
-use ros2_client::dds::rustdds::DataWriterStatus;
+use ros2_client::dds::rustdds::{
+    DataWriterStatus, DomainParticipant, Publisher, QosPolicies, Subscriber,
+};
+use ros2_client::{Context, NodeName, NodeOptions};
 use slamkit_ros2::dds::Discovery;
 use std::time::{Duration, Instant};
 
@@ -48,5 +51,39 @@ fn wait_until_matched(statuses: &[&dyn Fn() -> Option<DataWriterStatus>]) {
             *m |= matches!(status(), Some(DataWriterStatus::PublicationMatched { .. }));
         }
         std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// The test's side of a loopback run: plain RustDDS writers and readers (so the test can see
+/// them matched) on a participant of `discovery`, and a ROS 2 node named `name` on it to make
+/// the topics.
+struct Peer {
+    /// Held for the writers' and readers' lifetime (they refer to it weakly).
+    _participant: DomainParticipant,
+    ros: ros2_client::Node,
+    publisher: Publisher,
+    subscriber: Subscriber,
+}
+
+impl Peer {
+    fn new(discovery: &Discovery, name: &str) -> Peer {
+        let participant: DomainParticipant = discovery.participant().unwrap();
+        let context = Context::from_domain_participant(participant.clone()).unwrap();
+        let ros = context
+            .new_node(
+                NodeName::new("/", name).unwrap(),
+                NodeOptions::new().enable_rosout(false),
+            )
+            .unwrap();
+        Peer {
+            publisher: participant
+                .create_publisher(&QosPolicies::qos_none())
+                .unwrap(),
+            subscriber: participant
+                .create_subscriber(&QosPolicies::qos_none())
+                .unwrap(),
+            _participant: participant,
+            ros,
+        }
     }
 }

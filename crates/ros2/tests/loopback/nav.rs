@@ -11,10 +11,9 @@
 //! stops the robot when it stops. Both sides find each other by unicast on `127.0.0.1` only
 //! (`ROS_LOCALHOST_ONLY`), on a domain of their own.
 
-use crate::{loopback_discovery, wait_until_matched};
+use crate::{loopback_discovery, wait_until_matched, Peer};
 use nalgebra::{Isometry2, Point2};
-use ros2_client::dds::rustdds::{QosPolicies, StatusEvented};
-use ros2_client::{Context, NodeName, NodeOptions};
+use ros2_client::dds::rustdds::StatusEvented;
 use slamkit_core::observation::{Observation, RgbdFrame};
 use slamkit_core::Pose3;
 use slamkit_ros2::dds::{latched_qos, reliable_qos, topic};
@@ -54,18 +53,12 @@ fn the_nav_node_drives_the_simulated_robot_over_loopback() {
     let stop = AtomicBool::new(false);
     std::thread::scope(|scope| {
         let node = scope.spawn(|| run_nav_node(&config, &nav_config, None, &stop));
-        let participant = discovery.participant().unwrap();
-        let context = Context::from_domain_participant(participant.clone()).unwrap();
-        let name = NodeName::new("/", "robot").unwrap();
-        let mut ros = context
-            .new_node(name, NodeOptions::new().enable_rosout(false))
-            .unwrap();
-        let publisher = participant
-            .create_publisher(&QosPolicies::qos_none())
-            .unwrap();
-        let subscriber = participant
-            .create_subscriber(&QosPolicies::qos_none())
-            .unwrap();
+        let Peer {
+            mut ros,
+            publisher,
+            subscriber,
+            ..
+        } = Peer::new(&discovery, "robot");
         let qos = reliable_qos(100);
         let c = &config.camera;
         let mut t = |name: &str, ty: &str, qos: &_| {

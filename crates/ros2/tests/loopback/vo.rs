@@ -14,9 +14,8 @@
 //! records what it processed (`--record`, issue 23): read back, the file holds every frame's
 //! image, every published pose and transform, and the final path.
 
-use crate::{loopback_discovery, wait_until_matched};
-use ros2_client::dds::rustdds::{QosPolicies, StatusEvented};
-use ros2_client::{Context, NodeName, NodeOptions};
+use crate::{loopback_discovery, wait_until_matched, Peer};
+use ros2_client::dds::rustdds::StatusEvented;
 use slamkit_core::{Pose3, Trajectory};
 use slamkit_io::bag::messages::{is_type, CameraInfoMsg, ImageMsg, RosMessage};
 use slamkit_io::bag::RgbdTopics;
@@ -193,15 +192,12 @@ fn the_camera_node_on_loopback_gives_the_bag_runs_trajectory() {
     std::thread::scope(|scope| {
         let node = scope.spawn(|| run_vo_node(&setup.node, |c| setup.session(c), &stop));
         // the player: plain RustDDS writers, so the test can see them matched
-        let participant = discovery.participant().unwrap();
-        let context = Context::from_domain_participant(participant.clone()).unwrap();
-        let name = NodeName::new("/", "player").unwrap();
-        let mut ros = context
-            .new_node(name, NodeOptions::new().enable_rosout(false))
-            .unwrap();
-        let publisher = participant
-            .create_publisher(&QosPolicies::qos_none())
-            .unwrap();
+        let Peer {
+            mut ros,
+            publisher,
+            subscriber,
+            ..
+        } = Peer::new(&discovery, "player");
         let qos = reliable_qos(100);
         let mut writer = |name: &str, ty: &str| {
             let (package, ty) = ty.split_once('/').unwrap();
@@ -239,9 +235,6 @@ fn the_camera_node_on_loopback_gives_the_bag_runs_trajectory() {
             .unwrap();
         let tf_w = publisher
             .create_datawriter_no_key_cdr::<msgs::TfMessage>(&tf_t, None)
-            .unwrap();
-        let subscriber = participant
-            .create_subscriber(&QosPolicies::qos_none())
             .unwrap();
         let mut pose_r = subscriber
             .create_datareader_no_key_cdr::<msgs::PoseWithCovarianceStamped>(&pose_t, None)
