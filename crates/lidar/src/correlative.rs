@@ -235,6 +235,39 @@ impl Field {
         }
         out
     }
+
+    /// [`Field::score`] at `(di + l, dj + r)` for each lane `l` and row `r` in `0..LANES`, in
+    /// one pass over the footprint: each footprint cell's values for the `LANES` translations
+    /// along a row lie side by side in memory (one load), and the `LANES`² sums are
+    /// independent, so the additions overlap rather than wait on each other. Each sum is
+    /// taken in footprint order, as [`Field::score`]'s. (Not inlined: inside the branch and
+    /// bound's loop the compiler kept the sums in memory, each addition waiting on a store.)
+    #[inline(never)]
+    fn score_square(&self, footprint: &Footprint, di: i64, dj: i64) -> [[f64; LANES]; LANES] {
+        let far = LANES as i64 - 1;
+        let inside = (
+            self.window(footprint, di, dj),
+            self.window(footprint, di + far, dj + far),
+        );
+        let (Some(window), Some(_)) = inside else {
+            return std::array::from_fn(|r| {
+                std::array::from_fn(|l| self.score(footprint, di + l as i64, dj + r as i64))
+            });
+        };
+        let mut sums = [[0.0; LANES]; LANES];
+        for &k in &footprint.relative {
+            for (r, row) in sums.iter_mut().enumerate() {
+                let at = k + r * self.width;
+                if let Some(&[v0, v1, v2, v3]) = window.get(at..at + LANES) {
+                    row[0] += f64::from(v0);
+                    row[1] += f64::from(v1);
+                    row[2] += f64::from(v2);
+                    row[3] += f64::from(v3);
+                }
+            }
+        }
+        sums
+    }
 }
 
 /// Cell of `p` in the lattice of side `res` anchored at `origin`; far-off (or NaN) points map
@@ -638,16 +671,30 @@ fn best_in_blocks(
         let Some(cells) = rotated.get(block.angle) else {
             continue;
         };
-        let djs: Vec<i64> = (block.dj..(block.dj + coarse).min(w + 1)).collect();
-        for di in block.di..(block.di + coarse).min(w + 1) {
-            for chunk in djs.chunks(LANES) {
-                let scores = field.score_lanes(cells, di, chunk);
-                for (&dj, &s) in chunk.iter().zip(&scores) {
-                    if s > best.0 {
-                        best = (s, block.angle, di, dj);
+        let (di_end, dj_end) = (
+            (block.di + coarse).min(w + 1),
+            (block.dj + coarse).min(w + 1),
+        );
+        // The block's best, the first in translation order (`di`, then `dj`) among equals, as
+        // when scored one by one; a later block must beat it.
+        let mut block_best: Option<(f64, i64, i64)> = None;
+        for dj0 in (block.dj..dj_end).step_by(LANES) {
+            for di0 in (block.di..di_end).step_by(LANES) {
+                let square = field.score_square(cells, di0, dj0);
+                for (dj, row) in (dj0..dj_end).zip(square) {
+                    for (di, s) in (di0..di_end).zip(row) {
+                        let better = block_best.map_or(true, |(b, bdi, bdj)| {
+                            s > b || (s == b && (di, dj) < (bdi, bdj))
+                        });
+                        if better {
+                            block_best = Some((s, di, dj));
+                        }
                     }
                 }
             }
+        }
+        if let Some((s, di, dj)) = block_best.filter(|(s, _, _)| *s > best.0) {
+            best = (s, block.angle, di, dj);
         }
     }
     best
