@@ -52,9 +52,10 @@ pub struct LidarArgs {
     /// SLAM method of a new map.
     #[arg(long, value_enum, default_value = "icp")]
     pub method: Method,
-    /// Particles of the particle filter.
-    #[arg(long, default_value_t = 30)]
-    pub particles: usize,
+    /// Particles of the particle filter (default: the profile's or `--config` file's
+    /// `particles`, else 30).
+    #[arg(long)]
+    pub particles: Option<usize>,
     /// Seed of every random choice of the run: the particle filter's draws and resampling,
     /// Monte Carlo localisation's (`--localize MAP.yaml`), the drone's particle filter
     /// (default: the configured seed, 1; ICP-SLAM and the global search draw nothing).
@@ -204,7 +205,7 @@ pub fn run(args: &LidarArgs) -> anyhow::Result<()> {
 }
 
 /// The session's settings ([`LidarSlamConfig::from_files`]), with `--particles` and `--seed`
-/// for the particle filter.
+/// for the particle filter when given (a file's `particles` stands otherwise).
 fn session_config(args: &LidarArgs) -> anyhow::Result<LidarSlamConfig> {
     let method = match args.method {
         Method::Icp => LidarMethod::Icp,
@@ -217,8 +218,8 @@ fn session_config(args: &LidarArgs) -> anyhow::Result<LidarSlamConfig> {
         args.profile.as_deref(),
         args.config.as_deref(),
     )?;
-    if !in_saved_map && method == LidarMethod::Rbpf {
-        config.rbpf.particles = args.particles;
+    if let (false, LidarMethod::Rbpf, Some(particles)) = (in_saved_map, method, args.particles) {
+        config.rbpf.particles = particles;
     }
     if let Some(seed) = args.seed {
         config.rbpf.seed = seed;

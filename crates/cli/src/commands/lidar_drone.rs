@@ -20,6 +20,7 @@ use slamkit_core::Observation;
 use slamkit_io::drone_csv::read_observations;
 use slamkit_io::output_folder::OutputFolder;
 use slamkit_io::write_tum;
+use slamkit_lidar::rbpf::RbpfConfig;
 use slamkit_slam::drone::map::DroneMap;
 use slamkit_slam::lidar::preflight::{ensure_fits_memory, particle_maps_min_bytes};
 use slamkit_slam::{DroneSlam, DroneSlamConfig, Session};
@@ -30,7 +31,8 @@ use std::time::Instant;
 pub fn run(args: &LidarArgs, ranges: &Path) -> anyhow::Result<()> {
     let started = Instant::now();
     let config = DroneSlamConfig::from_files(
-        (args.method == Method::Rbpf).then_some(args.particles),
+        (args.method == Method::Rbpf)
+            .then(|| args.particles.unwrap_or(RbpfConfig::default().particles)),
         args.seed,
         args.profile.as_deref(),
         args.config.as_deref(),
