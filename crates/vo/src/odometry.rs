@@ -476,9 +476,9 @@ impl Odometry {
     /// ORB frame to frame: the frame's descriptors matched against the reference's whose point
     /// projects, in the pose searched around (the constant-velocity prediction, see
     /// [`Search`]), near the feature (the search widened once when too few match, as with the
-    /// local map); the frame's points were
-    /// lifted when it was prepared. With `local_map.scale_levels`, each pair is compared on
-    /// the pyramid levels of the feature's predicted scale change ([`Odometry::scaled_matches`]).
+    /// local map); the frame's points were lifted when it was prepared. With
+    /// `local_map.scale_levels`, each pair is compared on the pyramid levels of the feature's
+    /// predicted scale change ([`Odometry::scaled_matches`]).
     fn orb_matches(
         &self,
         reference: &Reference,
