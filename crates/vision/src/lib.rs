@@ -40,7 +40,7 @@ pub use clahe::{Clahe, ClaheConfig};
 pub use corners::{shi_tomasi, Corner, ShiTomasiConfig};
 pub use error::VisionError;
 pub use klt::{KltConfig, KltPyramid, Track};
-pub use matching::{match_descriptors, DescriptorMatch, MatchConfig};
+pub use matching::{match_descriptors, match_within_by, DescriptorMatch, MatchConfig};
 pub use orb::{Descriptor, Keypoint, Orb, OrbConfig, OrbFeatures};
 pub use slamkit_core::image::{GrayImage, Image, RgbImage};
 pub use stereo::{StereoConfig, StereoMatch, StereoPair};

@@ -89,6 +89,40 @@ pub fn match_descriptors_within(
             "must be one per query and per train descriptor",
         ));
     }
+    within(query_px, train_px, radius_px, |window| {
+        filter(nearest(query, train, window), config)
+    })
+}
+
+/// Like [`match_descriptors_within`], but the distance of query `i` and train `j` is
+/// `distance(i, j)` (`None`: the pair is not compared), for descriptors that depend on the
+/// pair — a feature described on the pyramid level its predicted scale change calls for, the
+/// smallest distance over a few levels.
+///
+/// # Errors
+/// [`VisionError::InvalidConfig`] when the radius is not finite and positive.
+pub fn match_within_by(
+    query_px: &[[f32; 2]],
+    train_px: &[[f32; 2]],
+    radius_px: f32,
+    distance: impl Fn(usize, usize) -> Option<u32>,
+    config: &MatchConfig,
+) -> Result<Vec<DescriptorMatch>, VisionError> {
+    within(query_px, train_px, radius_px, |window| {
+        filter(
+            nearest_by(query_px.len(), train_px.len(), window, distance),
+            config,
+        )
+    })
+}
+
+/// Checks the radius and runs `search` over the pairs within it.
+fn within(
+    query_px: &[[f32; 2]],
+    train_px: &[[f32; 2]],
+    radius_px: f32,
+    search: impl FnOnce(&Window<'_>) -> Vec<DescriptorMatch>,
+) -> Result<Vec<DescriptorMatch>, VisionError> {
     if !(radius_px.is_finite() && radius_px > 0.0) {
         return Err(VisionError::config("radius_px", radius_px, "must be > 0"));
     }
@@ -99,7 +133,7 @@ pub fn match_descriptors_within(
         train_px,
         radius_sq: radius_px * radius_px,
     };
-    Ok(filter(nearest(query, train, &window), config))
+    Ok(search(&window))
 }
 
 /// Best and second-best distance of one query and the train index of the best.
@@ -274,19 +308,35 @@ fn nearest_portable(
     train: &[Descriptor],
     pairs: &impl Candidates,
 ) -> Nearest {
-    let mut col_best = vec![(u32::MAX, usize::MAX); train.len()];
-    let mut rows = Vec::with_capacity(query.len());
-    for (qi, q) in query.iter().enumerate() {
+    nearest_by(query.len(), train.len(), pairs, |qi, ti| {
+        Some(hamming(query.get(qi)?, train.get(ti)?))
+    })
+}
+
+/// The nearest neighbours of `n_query` queries among `n_train` train items over the candidate
+/// pairs, the distance of a pair given by `distance` (`None`: not compared).
+#[inline(always)]
+fn nearest_by(
+    n_query: usize,
+    n_train: usize,
+    pairs: &impl Candidates,
+    distance: impl Fn(usize, usize) -> Option<u32>,
+) -> Nearest {
+    let mut col_best = vec![(u32::MAX, usize::MAX); n_train];
+    let mut rows = Vec::with_capacity(n_query);
+    for qi in 0..n_query {
         let mut row = Row {
             best: u32::MAX,
             second: u32::MAX,
             best_train: usize::MAX,
         };
         pairs.each(qi, |ti| {
-            let (Some(t), Some(cb)) = (train.get(ti), col_best.get_mut(ti)) else {
+            let Some(cb) = col_best.get_mut(ti) else {
                 return;
             };
-            let d = hamming(q, t);
+            let Some(d) = distance(qi, ti) else {
+                return;
+            };
             // ties go to the lowest train index, whatever order the pairs come in
             if (d, ti) < (row.best, row.best_train) {
                 row.second = row.best;
@@ -447,6 +497,13 @@ mod tests {
         }
         assert_eq!(got, want);
         assert!(got.len() > 60, "{}", got.len());
+        // the same through a distance function; pairs it declines are not compared
+        let by = |q: usize, t: usize| Some(hamming(&query[q], &train[t]));
+        assert_eq!(match_within_by(&qp, &tp, radius, by, &config).unwrap(), got);
+        let odd_only = |q: usize, t: usize| (t % 2 == 1).then(|| hamming(&query[q], &train[t]));
+        let some = match_within_by(&qp, &tp, radius, odd_only, &config).unwrap();
+        assert!(!some.is_empty() && some.iter().all(|m| m.train_idx % 2 == 1));
+        assert!(match_within_by(&qp, &tp, -1.0, by, &config).is_err());
         // a radius covering everything is the brute force
         let wide = match_descriptors_within((&query, &qp), (&train, &tp), 1e4, &config).unwrap();
         let brute = match_descriptors(&query, &train, &config);

@@ -47,6 +47,13 @@ pub struct LocalMapConfig {
     pub recovery_radius_px: f64,
     /// ORB: see `recovery_radius_px` \[matches\].
     pub min_window_matches: usize,
+    /// ORB frame to frame: coarser pyramid levels (`orb.scale_factor` apart) a feature may
+    /// also be described on, so that a frame seeing it larger or smaller than the reference
+    /// did (driving towards or away from it) still matches. Each reference feature's scale
+    /// change is predicted from its depth and the predicted pose; it is compared on every
+    /// level from 0 to the one that change calls for, on every level within this many in the
+    /// recovery search. 0: the level-0 descriptors only.
+    pub scale_levels: usize,
     /// ORB: a key-frame feature left unmatched is merged into the landmark projecting within
     /// this distance of it with a descriptor within the matching distance, instead of
     /// becoming a new landmark \[px\].
@@ -64,6 +71,7 @@ impl Default for LocalMapConfig {
             search_radius_px: 45.0,
             recovery_radius_px: 120.0,
             min_window_matches: 50,
+            scale_levels: 0,
             merge_radius_px: 3.0,
             bundle: LocalBaConfig::default(),
         }

@@ -168,3 +168,85 @@ fn automatic_clahe_switches_on_a_shadow_and_back_with_hysteresis() {
     };
     assert!(bad.validate().is_err());
 }
+
+/// ORB frame to frame across a scale change: a textured wall 2 m ahead, then 0.6 m nearer,
+/// so every point is seen 1.43 times larger (two levels at `scale_factor` 1.2) and the image
+/// moves up to 90 px at the border; the second frame has no motion to predict from. With the
+/// features described on coarser levels (`local_map.scale_levels`) the motion is found; on
+/// level 0 alone it is not.
+#[test]
+fn orb_frame_to_frame_matches_across_a_scale_change() {
+    let (w, h) = (320usize, 240usize);
+    let k = Intrinsics {
+        fx: 300.0,
+        fy: 300.0,
+        cx: 160.0,
+        cy: 120.0,
+        width: w,
+        height: h,
+    };
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(21);
+    let raw: Vec<f32> = (0..(w / 4 + 2) * (h / 4 + 2))
+        .map(|_| rng.gen_range(0.0..255.0))
+        .collect();
+    // blobs about 4 px across: the raw grid bilinearly interpolated
+    let wall = |x: f64, y: f64| {
+        let (gx, gy) = (
+            (x / 4.0).clamp(0.0, (w / 4) as f64),
+            (y / 4.0).clamp(0.0, (h / 4) as f64),
+        );
+        let (x0, y0) = (gx.floor(), gy.floor());
+        let (fx, fy) = ((gx - x0) as f32, (gy - y0) as f32);
+        let at = |dx: usize, dy: usize| raw[(y0 as usize + dy) * (w / 4 + 2) + x0 as usize + dx];
+        (at(0, 0) * (1.0 - fx) + at(1, 0) * fx) * (1.0 - fy)
+            + (at(0, 1) * (1.0 - fx) + at(1, 1) * fx) * fy
+    };
+    // the wall seen from depth `z`, its texture fixed to the view from 2 m
+    let view = |z: f64| {
+        let s = 2.0 / z;
+        let data = (0..w * h)
+            .map(|i| {
+                let (x, y) = ((i % w) as f64, (i / w) as f64);
+                [wall((x - k.cx) / s + k.cx, (y - k.cy) / s + k.cy) as u8; 3]
+            })
+            .collect();
+        SensorImages::Rgbd {
+            color: Image::from_vec(w, h, data).unwrap(),
+            depth_m: Image::from_vec(w, h, vec![z as f32; w * h]).unwrap(),
+        }
+    };
+    let run = |scale_levels: usize| {
+        let mut config = VoConfig {
+            frontend: FrontendKind::Orb,
+            mode: TrackingMode::FrameToFrame,
+            ..VoConfig::default()
+        };
+        config.orb.n_levels = 1;
+        config.orb.n_features = 1000;
+        config.local_map.scale_levels = scale_levels;
+        let mut pre = Preprocessor::new(&config, Rig::Rgbd { color: k, depth: k }).unwrap();
+        let mut odometry = Odometry::new(&config, Pose3::identity());
+        let first = odometry.track(pre.prepare(0, 0.0, view(2.0)).unwrap());
+        assert!(
+            matches!(first, FrameStatus::Initialised { .. }),
+            "{first:?}"
+        );
+        let status = odometry.track(pre.prepare(1, 0.1, view(1.4)).unwrap());
+        (status, odometry.pose().translation.vector)
+    };
+    let (status, t) = run(3);
+    let FrameStatus::Tracked { inliers, .. } = status else {
+        panic!("{status:?}");
+    };
+    assert!(inliers >= 30, "{status:?}");
+    assert!(
+        (t - nalgebra::Vector3::new(0.0, 0.0, 0.6)).norm() < 0.02,
+        "{t:?}"
+    );
+    let (status, t) = run(0);
+    assert!(
+        !matches!(status, FrameStatus::Tracked { .. })
+            || (t - nalgebra::Vector3::new(0.0, 0.0, 0.6)).norm() > 0.1,
+        "{status:?} {t:?}"
+    );
+}
