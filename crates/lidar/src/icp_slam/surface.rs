@@ -9,6 +9,9 @@
 //!   through where the map already holds a wall, so the point lies behind it and nothing in
 //!   the map can explain it. Such a point says nothing for or against the alignment; it is left
 //!   out of the count when it is unmatched.
+//! - New ground: a point in a direction where the map holds no surface at all (the robot
+//!   moved far since the last scan, or turned towards where it has not looked) cannot be
+//!   explained yet; it is left out of the count too when unmatched.
 //! - A sparse map (lost beams, a laser whose scans come seldom): its walls have gaps wider than
 //!   the threshold, and a point on the wall finds its nearest map point farther along the wall.
 //!   The point counts as matched when it lies within the threshold of the surface line through
@@ -59,7 +62,7 @@ impl SurfaceScore<'_> {
             if self.on_surface(&q) {
                 matched += 1;
                 counted += 1;
-            } else if !surface.behind(&q, self.behind_margin_m) {
+            } else if !surface.beyond(&q, self.behind_margin_m) {
                 counted += 1;
             }
         }
@@ -91,7 +94,7 @@ impl SurfaceScore<'_> {
 }
 
 /// The map's surface as seen from one place: per angular bin, the range of the nearest map
-/// point (infinite where the map has none).
+/// point (infinite where the map has none: nothing is known there).
 struct Surface {
     origin: Point2<f64>,
     nearest_m: Vec<f64>,
@@ -122,12 +125,13 @@ impl Surface {
         ((angle / SURFACE_BIN_RAD) as usize, d.norm())
     }
 
-    /// True when `q` lies farther than the surface along its beam by more than `margin_m`.
-    fn behind(&self, q: &Point2<f64>, margin_m: f64) -> bool {
+    /// True when `q` lies farther than the surface along its beam by more than `margin_m`, or
+    /// in a direction where the map has no surface.
+    fn beyond(&self, q: &Point2<f64>, margin_m: f64) -> bool {
         let (bin, range) = self.polar(q);
-        self.nearest_m
-            .get(bin)
-            .is_some_and(|nearest| range > nearest + margin_m)
+        self.nearest_m.get(bin).map_or(true, |nearest| {
+            !nearest.is_finite() || range > nearest + margin_m
+        })
     }
 }
 
@@ -145,7 +149,7 @@ mod tests {
     }
 
     #[test]
-    fn returns_behind_the_wall_do_not_count_and_sparse_walls_do() {
+    fn returns_behind_the_wall_and_on_new_ground_do_not_count_and_sparse_walls_do() {
         let map = sparse_wall();
         let score = SurfaceScore {
             map: &map,
@@ -167,6 +171,9 @@ mod tests {
         points.extend((-2..=2).map(|i| Point2::new(6.0, 0.6 * f64::from(i))));
         assert_eq!(score.goodness(&points, &origin, &Pose2::identity()), 1.0);
         points.extend((0..10).map(|i| Point2::new(1.0, 0.1 * f64::from(i) - 0.5)));
+        assert_eq!(score.goodness(&points, &origin, &Pose2::identity()), 0.5);
+        // new ground, where the map has no surface (behind the robot): left out
+        points.extend((0..10).map(|i| Point2::new(-3.0, 0.1 * f64::from(i))));
         assert_eq!(score.goodness(&points, &origin, &Pose2::identity()), 0.5);
         // the scan moved 0.5 m: the wall's points are off the surface
         let moved = Pose2::new(Vector2::new(-0.5, 0.0), 0.0);
