@@ -4,9 +4,11 @@
 //! keyframe once the robot has moved or turned far enough since the last one.
 //!
 //! Alignments whose goodness (fraction of scan points matched within the final ICP threshold)
-//! is below `min_goodness` are retried from a correlative search over a window around the guess
-//! (Olson 2009), so a bad odometry reading or a long gap does not derail the map. A scan that
-//! still does not match keeps its predicted pose and is counted as a failed match.
+//! is below `min_goodness` are scored again over the points the map could explain
+//! ([`surface`]: returns behind its walls and points on new ground left out, sparse walls
+//! matched by their lines), then retried from a correlative search over a window around the
+//! guess (Olson 2009), so a bad odometry reading or a long gap does not derail the map. A scan
+//! that still does not match keeps its predicted pose and is counted as a failed match.
 //!
 //! Keyframes are also the nodes of a pose graph ([`crate::pose_graph`]): consecutive keyframes
 //! are joined by the scan-matching result, and every few keyframes a loop-closure search
@@ -63,7 +65,9 @@ pub struct IcpSlamConfig {
     /// Insert a keyframe after turning this much since the last one \[rad\] (MRPT
     /// `insertionAngDistance`).
     pub insertion_angular_rad: f64,
-    /// Alignments below this goodness are not accepted (MRPT `minICPgoodnessToAccept`), in \[0, 1\].
+    /// Alignments below this goodness are not accepted (MRPT `minICPgoodnessToAccept`), in
+    /// \[0, 1\]; below it, the share of the points the map could explain counts instead
+    /// ([`surface`]).
     pub min_goodness: f64,
     /// Scans with fewer usable points are skipped.
     pub min_scan_points: usize,

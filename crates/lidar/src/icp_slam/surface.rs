@@ -2,7 +2,7 @@
 //! is accepted by when ICP's plain goodness ([`crate::icp::goodness`]) falls short.
 //!
 //! The plain goodness counts a scan point as matched when a map point lies within the final
-//! ICP threshold. Two things lower it without the alignment being wrong (issue 24, item 4;
+//! ICP threshold. Three things lower it without the alignment being wrong (issue 24, item 4;
 //! docs/experiments/lidar-icp-slam.md, "Degraded logs"):
 //!
 //! - Returns beyond the surface (glass, mirrors, spurious long readings): the beam passed
