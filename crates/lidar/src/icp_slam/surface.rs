@@ -47,7 +47,7 @@ pub struct SurfaceScore<'a> {
 impl SurfaceScore<'_> {
     /// The fraction of `points` (base frame, beams from `laser` in the base frame) at
     /// `world_from_base` that the map explains, among those it could: see the module
-    /// documentation. 0 when every point lies behind the surface.
+    /// documentation. 0 when fewer than half the points could be explained.
     pub fn goodness(
         &self,
         points: &[Point2<f64>],
@@ -66,7 +66,9 @@ impl SurfaceScore<'_> {
                 counted += 1;
             }
         }
-        if counted == 0 {
+        // A pose that turns most of the scan towards where the map has nothing, or behind its
+        // walls, leaves too few points to judge it by: it keeps ICP's own goodness.
+        if 2 * counted < points.len() {
             0.0
         } else {
             matched as f64 / counted as f64
@@ -175,6 +177,9 @@ mod tests {
         // new ground, where the map has no surface (behind the robot): left out
         points.extend((0..10).map(|i| Point2::new(-3.0, 0.1 * f64::from(i))));
         assert_eq!(score.goodness(&points, &origin, &Pose2::identity()), 0.5);
+        // but not when they are most of the scan: too little left to judge by
+        points.extend((0..30).map(|i| Point2::new(-3.0, -0.1 * f64::from(i))));
+        assert_eq!(score.goodness(&points, &origin, &Pose2::identity()), 0.0);
         // the scan moved 0.5 m: the wall's points are off the surface
         let moved = Pose2::new(Vector2::new(-0.5, 0.0), 0.0);
         assert!(score.goodness(&on_wall, &origin, &moved) < 0.01);
