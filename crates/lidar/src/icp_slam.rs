@@ -4,9 +4,11 @@
 //! keyframe once the robot has moved or turned far enough since the last one.
 //!
 //! Alignments whose goodness (fraction of scan points matched within the final ICP threshold)
-//! is below `min_goodness` are retried from a correlative search over a window around the guess
-//! (Olson 2009), so a bad odometry reading or a long gap does not derail the map. A scan that
-//! still does not match keeps its predicted pose and is counted as a failed match.
+//! is below `min_goodness` are scored again over the points the map could explain
+//! ([`surface`]: returns behind its walls and points on new ground left out, sparse walls
+//! matched by their lines), then retried from a correlative search over a window around the
+//! guess (Olson 2009), so a bad odometry reading or a long gap does not derail the map. A scan
+//! that still does not match keeps its predicted pose and is counted as a failed match.
 //!
 //! Keyframes are also the nodes of a pose graph ([`crate::pose_graph`]): consecutive keyframes
 //! are joined by the scan-matching result, and every few keyframes a loop-closure search
@@ -63,7 +65,9 @@ pub struct IcpSlamConfig {
     /// Insert a keyframe after turning this much since the last one \[rad\] (MRPT
     /// `insertionAngDistance`).
     pub insertion_angular_rad: f64,
-    /// Alignments below this goodness are not accepted (MRPT `minICPgoodnessToAccept`), in \[0, 1\].
+    /// Alignments below this goodness are not accepted (MRPT `minICPgoodnessToAccept`), in
+    /// \[0, 1\]; below it, the share of the points the map could explain counts instead
+    /// ([`surface`]).
     pub min_goodness: f64,
     /// Scans with fewer usable points are skipped.
     pub min_scan_points: usize,
@@ -576,7 +580,8 @@ impl IcpSlam {
         if self.map.is_empty() {
             return self.commit(guess, ScanStatus::Initialised, None, Some(&points));
         }
-        let (pose, status, goodness) = self.localise(&points, &guess);
+        let laser = Point2::from(scan.base_from_laser.translation.vector);
+        let (pose, status, goodness) = self.localise(&points, &laser, &guess);
         if let Some(frozen) = &mut self.frozen {
             frozen.last_matched = Some(pose);
         }
@@ -690,16 +695,18 @@ impl IcpSlam {
         }
     }
 
-    /// Aligns `points` to the map from `guess`, falling back to the correlative search.
+    /// Aligns `points` to the map from `guess`, falling back to the correlative search;
+    /// `laser` is where the beams start (base frame).
     fn localise(
         &mut self,
         points: &[Point2<f64>],
+        laser: &Point2<f64>,
         guess: &Pose2,
     ) -> (Pose2, ScanStatus, Option<f64>) {
         let source = voxel_downsample(points, self.config.scan_voxel_m);
         let start = Instant::now();
         let first = align(&source, self.map.index(), guess, &self.config.icp);
-        let first = first.ok();
+        let first = first.ok().map(|r| self.scored(r, &source, laser));
         self.timings.record_since("icp", start);
         if let Some(res) = first.filter(|r| r.goodness >= self.config.min_goodness) {
             self.consecutive_failures = 0;
@@ -711,7 +718,9 @@ impl IcpSlam {
         }
         let second = if self.config.correlative_fallback {
             let start = Instant::now();
-            let res = self.correlative_then_icp(&source, guess);
+            let res = self
+                .correlative_then_icp(&source, guess)
+                .map(|r| self.scored(r, &source, laser));
             self.timings.record_since("correlative", start);
             res
         } else {
@@ -734,6 +743,29 @@ impl IcpSlam {
             .map(|r| r.goodness)
             .reduce(f64::max);
         (*guess, ScanStatus::MatchFailed, best)
+    }
+
+    /// `result` with the goodness it is accepted by: ICP's own when it reaches `min_goodness`,
+    /// else the share of the scan the map explains among the points it could
+    /// ([`surface::SurfaceScore`]) when higher (so computing it only here decides the
+    /// same as always), which is not lowered by returns beyond the map's walls or gaps in a sparse map.
+    fn scored(
+        &self,
+        mut result: IcpResult,
+        source: &[Point2<f64>],
+        laser: &Point2<f64>,
+    ) -> IcpResult {
+        if result.goodness < self.config.min_goodness {
+            let score = surface::SurfaceScore {
+                map: self.map.index(),
+                threshold_m: self.config.icp.min_correspondence_dist_m,
+                behind_margin_m: self.config.icp.max_correspondence_dist_m,
+                max_range_m: self.config.max_range_m,
+            };
+            let explained = score.goodness(source, laser, &result.target_from_source);
+            result.goodness = result.goodness.max(explained);
+        }
+        result
     }
 
     fn correlative_then_icp(&self, source: &[Point2<f64>], guess: &Pose2) -> Option<IcpResult> {
@@ -1039,5 +1071,6 @@ pub fn run_icp_slam(
 pub mod broken_scans;
 pub mod loop_closure;
 pub mod revisit;
+pub mod surface;
 #[cfg(test)]
 mod tests;

@@ -3,9 +3,11 @@
 //! ROS bags), MIT CSAIL (original CARMEN log); see `$SLAMKIT_DATA/lidar2d/SOURCES.md`.
 //!
 //! The bounds sit slightly above what the default configuration reaches (measured with
-//! `slamkit lidar LOG --method icp` and `slamkit eval relations`: Intel 0.0158 m, ACES 0.0383 m,
-//! MIT CSAIL 0.0274 m mean translational error since scans on mapped ground are localised
-//! against its keyframes, docs/experiments/lidar-memory.md; 0.0156 / 0.0387 / 0.0278 m before), all well inside the issue's targets (the better
+//! `slamkit lidar LOG --method icp` and `slamkit eval relations`: Intel 0.0158 m, ACES 0.0385 m,
+//! MIT CSAIL 0.0268 m mean translational error since a match below `min_goodness` is scored
+//! over the points the map can explain, docs/experiments/lidar-icp-slam.md "Degraded logs";
+//! 0.0158 / 0.0383 / 0.0274 m before, and 0.0156 / 0.0387 / 0.0278 m before scans on mapped
+//! ground were localised against its keyframes), all well inside the issue's targets (the better
 //! of Kümmerle 2009's scan matching and MRPT icp-slam: Intel ≤ 0.058, ACES ≤ 0.173,
 //! CSAIL ≤ 0.106 m). Skipped when `SLAMKIT_DATA` is not set; run with `--release`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers fail loudly
@@ -13,8 +15,12 @@
 mod common;
 
 use common::{data_dir, relations_mean_error};
+use slamkit_core::LaserScan;
+use slamkit_eval::relations::RELATION_STAMP_TOLERANCE_S;
+use slamkit_eval::{relations_error, GroundTruthRelation};
+use slamkit_io::degraded_log::Degradation;
 use slamkit_lidar::icp_slam::{run_icp_slam, IcpSlamConfig};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Runs ICP-SLAM with the default configuration on `log` and returns its mean translational
 /// relations error \[m\].
@@ -74,9 +80,6 @@ fn icp_slam_mit_csail() {
 #[test]
 #[ignore = "a measurement: two ICP-SLAM runs of each benchmark log"]
 fn icp_slam_on_degraded_logs() {
-    use slamkit_eval::relations::RELATION_STAMP_TOLERANCE_S;
-    use slamkit_eval::{relations_error, GroundTruthRelation};
-    use slamkit_io::degraded_log::Degradation;
     let Some(dir) = data_dir("icp_slam_on_degraded_logs") else {
         return;
     };
@@ -134,29 +137,10 @@ fn icp_slam_on_degraded_logs() {
             ),
         ];
         // the relations both of whose ends every variant keeps (the fewest scans: one in
-        // `keep_every`), matched as the metric matches them
-        let mut kept: Vec<f64> = every.apply(&scans).iter().map(|s| s.timestamp).collect();
-        kept.sort_by(f64::total_cmp);
-        let near = |t: f64| {
-            let i = kept.partition_point(|&k| k < t);
-            [i.wrapping_sub(1), i].iter().any(|&j| {
-                kept.get(j)
-                    .is_some_and(|k| (k - t).abs() <= RELATION_STAMP_TOLERANCE_S)
-            })
-        };
-        let relations: Vec<GroundTruthRelation> =
-            slamkit_io::relations::read_relations(&dir.join(relations))
-                .unwrap()
-                .into_iter()
-                .filter(|r| near(r.t1) && near(r.t2))
-                .map(|r| GroundTruthRelation {
-                    t1: r.t1,
-                    t2: r.t2,
-                    t1_from_t2: r.t1_from_t2,
-                })
-                .collect();
+        // `keep_every`)
+        let relations = kept_relations(&dir.join(relations), &every.apply(&scans));
         let config = IcpSlamConfig::default();
-        let run = |scans: &[slamkit_core::LaserScan]| {
+        let run = |scans: &[LaserScan]| {
             let start = std::time::Instant::now();
             let out = run_icp_slam(scans, &config, |_| {}).unwrap();
             let error = relations_error(&relations, &out.trajectory).unwrap();
@@ -184,4 +168,67 @@ fn icp_slam_on_degraded_logs() {
             );
         }
     }
+}
+
+/// The relations of the file `relations` both of whose ends are scans of `kept`, matched as the
+/// metric matches them (within [`RELATION_STAMP_TOLERANCE_S`]).
+fn kept_relations(relations: &Path, kept: &[LaserScan]) -> Vec<GroundTruthRelation> {
+    let mut stamps: Vec<f64> = kept.iter().map(|s| s.timestamp).collect();
+    stamps.sort_by(f64::total_cmp);
+    let near = |t: f64| {
+        let i = stamps.partition_point(|&k| k < t);
+        [i.wrapping_sub(1), i].iter().any(|&j| {
+            stamps
+                .get(j)
+                .is_some_and(|k| (k - t).abs() <= RELATION_STAMP_TOLERANCE_S)
+        })
+    };
+    slamkit_io::relations::read_relations(relations)
+        .unwrap()
+        .into_iter()
+        .filter(|r| near(r.t1) && near(r.t2))
+        .map(|r| GroundTruthRelation {
+            t1: r.t1,
+            t2: r.t2,
+            t1_from_t2: r.t1_from_t2,
+        })
+        .collect()
+}
+
+/// Issue 24, item 4, in CI: the first 500 s of Intel, degraded as
+/// [`icp_slam_on_degraded_logs`] degrades it (843 scans), mapped at the defaults: 0.5 % of
+/// the matches failed and the relations error over the 150 relations kept was 0.0212 m (the
+/// undegraded part 0.0143 m). Before failed matches were scored over the points the map can
+/// explain (`icp_slam::surface`): 33.5 % and 1.084 m. About 2 s in release.
+#[test]
+fn icp_slam_on_degraded_intel_start() {
+    let Some(dir) = data_dir("icp_slam_on_degraded_intel_start") else {
+        return;
+    };
+    let scans = slamkit_io::carmen::read_carmen(&dir.join("intel/intel.fromrosbag.clf.gz"))
+        .unwrap()
+        .scans;
+    let start = scans[0].timestamp;
+    let part: Vec<LaserScan> = scans
+        .into_iter()
+        .take_while(|s| s.timestamp - start < 500.0)
+        .collect();
+    let degraded = Degradation::default().apply(&part);
+    let relations = kept_relations(&dir.join("intel/intel.relations"), &degraded);
+    let out = run_icp_slam(&degraded, &IcpSlamConfig::default(), |_| {}).unwrap();
+    let error = relations_error(&relations, &out.trajectory).unwrap();
+    let failed = out.stats.matches_failed as f64 / out.stats.scans_processed as f64;
+    eprintln!(
+        "degraded Intel, first 500 s: {} scans, {:.1} % failed, relations error {:.4} m over {}",
+        degraded.len(),
+        100.0 * failed,
+        error.trans_mean,
+        error.count
+    );
+    assert!(failed < 0.05, "{:.1} % failed matches", 100.0 * failed);
+    assert!(
+        error.trans_mean < 0.03,
+        "relations error {} m",
+        error.trans_mean
+    );
 }
