@@ -6,9 +6,10 @@
 //! Alignments whose goodness (fraction of scan points matched within the final ICP threshold)
 //! is below `min_goodness` are (with `surface_score`) scored again over the points the map
 //! could explain ([`surface`]: returns behind its walls and points on new ground left out,
-//! sparse walls matched by their lines), then retried from a correlative search over a window around the
-//! guess (Olson 2009), so a bad odometry reading or a long gap does not derail the map. A scan
-//! that still does not match keeps its predicted pose and is counted as a failed match.
+//! sparse walls matched by their lines), then retried from a correlative search over a window
+//! around the guess (Olson 2009), so a bad odometry reading or a long gap does not derail the
+//! map. A scan that still does not match keeps its predicted pose and is counted as a failed
+//! match.
 //!
 //! Keyframes are also the nodes of a pose graph ([`crate::pose_graph`]): consecutive keyframes
 //! are joined by the scan-matching result, and every few keyframes a loop-closure search
@@ -755,9 +756,10 @@ impl IcpSlam {
     }
 
     /// `result` with the goodness it is accepted by: ICP's own when it reaches `min_goodness`
-    /// or `surface_score` is off, else the share of the scan the map explains among the points it could
-    /// ([`surface::SurfaceScore`]) when higher (so computing it only here decides the
-    /// same as always), which is not lowered by returns beyond the map's walls or gaps in a sparse map.
+    /// or `surface_score` is off, else the share of the scan the map explains among the points
+    /// it could ([`surface::SurfaceScore`]) when higher (so computing it only here decides the
+    /// same as always), which is not lowered by returns beyond the map's walls or gaps in a
+    /// sparse map.
     fn scored(
         &self,
         mut result: IcpResult,
