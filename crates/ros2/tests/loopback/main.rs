@@ -57,6 +57,17 @@ fn wait_until_matched(statuses: &[&dyn Fn() -> Option<DataWriterStatus>]) {
 /// The test's side of a loopback run: plain RustDDS writers and readers (so the test can see
 /// them matched) on a participant of `discovery`, and a ROS 2 node named `name` on it to make
 /// the topics.
+/// The topic `name` of messages `ros_type` (`"package/Type"`, as ROS 2 writes them).
+fn typed_topic(
+    ros: &mut ros2_client::Node,
+    name: &str,
+    ros_type: &str,
+    qos: &ros2_client::QosProfile,
+) -> ros2_client::dds::rustdds::Topic {
+    let (package, ty) = ros_type.split_once('/').unwrap();
+    slamkit_ros2::dds::topic(ros, name, package, ty, qos).unwrap()
+}
+
 struct Peer {
     /// Held for the writers' and readers' lifetime (they refer to it weakly).
     _participant: DomainParticipant,

@@ -11,12 +11,12 @@
 //! stops the robot when it stops. Both sides find each other by unicast on `127.0.0.1` only
 //! (`ROS_LOCALHOST_ONLY`), on a domain of their own.
 
-use crate::{loopback_discovery, wait_until_matched, Peer};
+use crate::{loopback_discovery, typed_topic, wait_until_matched, Peer};
 use nalgebra::{Isometry2, Point2};
 use ros2_client::dds::rustdds::StatusEvented;
 use slamkit_core::observation::{Observation, RgbdFrame};
 use slamkit_core::Pose3;
-use slamkit_ros2::dds::{latched_qos, reliable_qos, topic};
+use slamkit_ros2::dds::{latched_qos, reliable_qos};
 use slamkit_ros2::msgs::{self, Header, Time};
 use slamkit_ros2::{run_nav_node, run_sim_node, NavNodeConfig, SimNodeConfig};
 use slamkit_sim::{GroundRobot, World};
@@ -61,10 +61,7 @@ fn the_nav_node_drives_the_simulated_robot_over_loopback() {
         } = Peer::new(&discovery, "robot");
         let qos = reliable_qos(100);
         let c = &config.camera;
-        let mut t = |name: &str, ty: &str, qos: &_| {
-            let (package, ty) = ty.split_once('/').unwrap();
-            topic(&mut ros, name, package, ty, qos).unwrap()
-        };
+        let mut t = |name: &str, ty: &str, qos: &_| typed_topic(&mut ros, name, ty, qos);
         let rgb_w = publisher
             .create_datawriter_no_key_cdr::<msgs::Image>(
                 &t(&c.rgb_topic, "sensor_msgs/Image", &qos),

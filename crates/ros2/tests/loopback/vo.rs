@@ -14,7 +14,7 @@
 //! records what it processed (`--record`, issue 23): read back, the file holds every frame's
 //! image, every published pose and transform, and the final path.
 
-use crate::{loopback_discovery, wait_until_matched, Peer};
+use crate::{loopback_discovery, typed_topic, wait_until_matched, Peer};
 use ros2_client::dds::rustdds::StatusEvented;
 use slamkit_core::{Pose3, Trajectory};
 use slamkit_io::bag::messages::{is_type, CameraInfoMsg, ImageMsg, RosMessage};
@@ -199,10 +199,7 @@ fn the_camera_node_on_loopback_gives_the_bag_runs_trajectory() {
             ..
         } = Peer::new(&discovery, "player");
         let qos = reliable_qos(100);
-        let mut writer = |name: &str, ty: &str| {
-            let (package, ty) = ty.split_once('/').unwrap();
-            topic(&mut ros, name, package, ty, &qos).unwrap()
-        };
+        let mut writer = |name: &str, ty: &str| typed_topic(&mut ros, name, ty, &qos);
         let (rgb_t, depth_t, info_t) = (
             writer(RGB, "sensor_msgs/Image"),
             writer(DEPTH_PNG, "sensor_msgs/CompressedImage"),
